@@ -1,0 +1,102 @@
+//! One error type for the whole library.
+//!
+//! Every error a user can cause carries the file it is about, what was found there and what was
+//! expected, so the message alone tells them what to fix:
+//!
+//! ```text
+//! scan.nii.gz: data ends after 12 of 361 slices (truncated file?); expected 512×512×361 int16 samples
+//! ```
+
+use std::fmt;
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// What went wrong, with enough context to act on it.
+#[derive(Debug)]
+pub enum Error {
+    /// A file's content is not what it should be (bad header, truncated data, unsupported type…).
+    Input {
+        path: PathBuf,
+        found: String,
+        expected: String,
+    },
+    /// The operating system refused an operation on a file.
+    Io {
+        path: PathBuf,
+        action: &'static str,
+        source: io::Error,
+    },
+    /// The options do not make sense together (missing `--raw-dims`, output equal to input…).
+    Usage(String),
+    /// A bug: an internal invariant failed. Reported rather than panicking.
+    Internal(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// A problem with the content of `path`.
+    pub fn input(
+        path: impl AsRef<Path>,
+        found: impl Into<String>,
+        expected: impl Into<String>,
+    ) -> Self {
+        Error::Input {
+            path: path.as_ref().to_path_buf(),
+            found: found.into(),
+            expected: expected.into(),
+        }
+    }
+
+    /// An operating-system error while doing `action` ("reading", "creating", …) on `path`.
+    pub fn io(path: impl AsRef<Path>, action: &'static str, source: io::Error) -> Self {
+        Error::Io {
+            path: path.as_ref().to_path_buf(),
+            action,
+            source,
+        }
+    }
+
+    pub fn usage(msg: impl Into<String>) -> Self {
+        Error::Usage(msg.into())
+    }
+
+    /// True for errors caused by the user's files or options (exit code 2), false for bugs.
+    pub fn is_user_error(&self) -> bool {
+        !matches!(self, Error::Internal(_))
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Input {
+                path,
+                found,
+                expected,
+            } => write!(f, "{}: {}; expected {}", path.display(), found, expected),
+            Error::Io {
+                path,
+                action,
+                source,
+            } => write!(
+                f,
+                "{}: error {} the file: {}",
+                path.display(),
+                action,
+                source
+            ),
+            Error::Usage(msg) => write!(f, "{msg}"),
+            Error::Internal(msg) => write!(f, "internal error (please report): {msg}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,27 @@
+//! # isotopo — isosurface topology simplification
+//!
+//! Scans and reconstructions turned into surfaces by isosurface extraction carry hundreds of tiny
+//! topological handles. isotopo finds every handle of an isosurface with a slice-by-slice sweep
+//! (a Reeb graph of contours and ribbons, after Wood, Hoppe, Desbrun and Schröder, *Isosurface
+//! Topology Simplification*, 2002), measures each by its two shortest surface loops, and removes the
+//! small ones by writing a thin wall into the volume, so the result is always a valid manifold
+//! isosurface and the geometry away from each handle is untouched.
+//!
+//! Data flows one way, one module per stage:
+//!
+//! ```text
+//! volume file -> slice stream -> surfels per slice -> contours + ribbons -> Reeb graph
+//!   -> handles -> Reeb loop / cross loop -> closures -> edited volume (+ mesh, report)
+//! ```
+//!
+//! - [`volume`]: reading and writing NIfTI, NRRD, MGH/MGZ, MetaImage, NumPy, raw and TIFF,
+//!   streamed by z-slice.
+
+// Index loops read better than iterator chains in the matrix and grid code here.
+#![allow(clippy::needless_range_loop)]
+
+pub mod error;
+pub mod progress;
+pub mod volume;
+
+pub use error::{Error, Result};

@@ -1,0 +1,22 @@
+//! Progress reporting, decoupled from any terminal: the library reports stages and steps, the
+//! command line draws bars (or nothing, under `--quiet` or when stderr is not a terminal).
+
+/// Receives progress from long operations. All methods take `&self` so one reporter can be shared.
+pub trait Progress: Sync {
+    /// A new stage begins with `total` steps (slices, handles…).
+    fn start(&self, stage: &str, total: u64);
+    /// `n` more steps are done.
+    fn advance(&self, n: u64);
+    /// A short status for the current stage ("12 handles found").
+    fn message(&self, _msg: &str) {}
+    /// The current stage is complete.
+    fn finish(&self) {}
+}
+
+/// Reports nothing.
+pub struct NoProgress;
+
+impl Progress for NoProgress {
+    fn start(&self, _stage: &str, _total: u64) {}
+    fn advance(&self, _n: u64) {}
+}

@@ -1,0 +1,322 @@
+//! Sample types and typed sample buffers.
+
+use std::fmt;
+
+/// The sample types isotopo reads and writes, in every format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DType {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    F32,
+    F64,
+}
+
+/// Byte order of samples in a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Endian {
+    Little,
+    Big,
+}
+
+impl Endian {
+    pub const NATIVE: Endian = if cfg!(target_endian = "big") {
+        Endian::Big
+    } else {
+        Endian::Little
+    };
+}
+
+impl DType {
+    pub const ALL: [DType; 8] = [
+        DType::U8,
+        DType::I8,
+        DType::U16,
+        DType::I16,
+        DType::U32,
+        DType::I32,
+        DType::F32,
+        DType::F64,
+    ];
+
+    /// Bytes per sample.
+    pub fn size(self) -> usize {
+        match self {
+            DType::U8 | DType::I8 => 1,
+            DType::U16 | DType::I16 => 2,
+            DType::U32 | DType::I32 | DType::F32 => 4,
+            DType::F64 => 8,
+        }
+    }
+
+    /// The name used on the command line and in messages (`uint8`, `int16`, `float32`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            DType::U8 => "uint8",
+            DType::I8 => "int8",
+            DType::U16 => "uint16",
+            DType::I16 => "int16",
+            DType::U32 => "uint32",
+            DType::I32 => "int32",
+            DType::F32 => "float32",
+            DType::F64 => "float64",
+        }
+    }
+
+    /// Parses a type name as users write it (`uint8`, `u8`, `uchar`, `int16`, `short`, `float`, …).
+    pub fn parse(s: &str) -> Option<DType> {
+        let t = match s.trim().to_ascii_lowercase().as_str() {
+            "uint8" | "u8" | "uchar" | "ubyte" => DType::U8,
+            "int8" | "i8" | "char" | "byte" | "schar" => DType::I8,
+            "uint16" | "u16" | "ushort" => DType::U16,
+            "int16" | "i16" | "short" => DType::I16,
+            "uint32" | "u32" | "uint" => DType::U32,
+            "int32" | "i32" | "int" => DType::I32,
+            "float32" | "f32" | "float" | "single" => DType::F32,
+            "float64" | "f64" | "double" => DType::F64,
+            _ => return None,
+        };
+        Some(t)
+    }
+
+    pub fn is_float(self) -> bool {
+        matches!(self, DType::F32 | DType::F64)
+    }
+
+    /// Smallest and largest representable value.
+    pub fn range(self) -> (f64, f64) {
+        match self {
+            DType::U8 => (0.0, u8::MAX as f64),
+            DType::I8 => (i8::MIN as f64, i8::MAX as f64),
+            DType::U16 => (0.0, u16::MAX as f64),
+            DType::I16 => (i16::MIN as f64, i16::MAX as f64),
+            DType::U32 => (0.0, u32::MAX as f64),
+            DType::I32 => (i32::MIN as f64, i32::MAX as f64),
+            DType::F32 => (f32::MIN as f64, f32::MAX as f64),
+            DType::F64 => (f64::MIN, f64::MAX),
+        }
+    }
+}
+
+impl fmt::Display for DType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A run of samples of one type: one z-slice, usually, in x-fastest order.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Samples {
+    U8(Vec<u8>),
+    I8(Vec<i8>),
+    U16(Vec<u16>),
+    I16(Vec<i16>),
+    U32(Vec<u32>),
+    I32(Vec<i32>),
+    F32(Vec<f32>),
+    F64(Vec<f64>),
+}
+
+/// Runs `$body` with `$v` bound to the typed vector inside a [`Samples`].
+#[macro_export]
+macro_rules! with_samples {
+    ($s:expr, $v:ident => $body:expr) => {
+        match $s {
+            $crate::volume::Samples::U8($v) => $body,
+            $crate::volume::Samples::I8($v) => $body,
+            $crate::volume::Samples::U16($v) => $body,
+            $crate::volume::Samples::I16($v) => $body,
+            $crate::volume::Samples::U32($v) => $body,
+            $crate::volume::Samples::I32($v) => $body,
+            $crate::volume::Samples::F32($v) => $body,
+            $crate::volume::Samples::F64($v) => $body,
+        }
+    };
+}
+
+/// A primitive sample type: conversion from file bytes and to `f64`.
+pub trait Sample: Copy + Send + Sync + PartialOrd + 'static {
+    const DTYPE: DType;
+    fn from_le(bytes: &[u8]) -> Self;
+    fn from_be(bytes: &[u8]) -> Self;
+    fn write_le(self, out: &mut Vec<u8>);
+    fn write_be(self, out: &mut Vec<u8>);
+    fn to_f64(self) -> f64;
+    /// Converts an `f64` that is known to be representable (used for written wall values).
+    fn from_f64(v: f64) -> Self;
+}
+
+macro_rules! impl_sample {
+    ($t:ty, $d:expr) => {
+        impl Sample for $t {
+            const DTYPE: DType = $d;
+            #[inline]
+            fn from_le(b: &[u8]) -> Self {
+                <$t>::from_le_bytes(b.try_into().unwrap())
+            }
+            #[inline]
+            fn from_be(b: &[u8]) -> Self {
+                <$t>::from_be_bytes(b.try_into().unwrap())
+            }
+            #[inline]
+            fn write_le(self, out: &mut Vec<u8>) {
+                out.extend_from_slice(&self.to_le_bytes())
+            }
+            #[inline]
+            fn write_be(self, out: &mut Vec<u8>) {
+                out.extend_from_slice(&self.to_be_bytes())
+            }
+            #[inline]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn from_f64(v: f64) -> Self {
+                v as $t
+            }
+        }
+    };
+}
+impl_sample!(u8, DType::U8);
+impl_sample!(i8, DType::I8);
+impl_sample!(u16, DType::U16);
+impl_sample!(i16, DType::I16);
+impl_sample!(u32, DType::U32);
+impl_sample!(i32, DType::I32);
+impl_sample!(f32, DType::F32);
+impl_sample!(f64, DType::F64);
+
+fn decode_into<T: Sample>(bytes: &[u8], endian: Endian, out: &mut Vec<T>) {
+    out.clear();
+    let n = std::mem::size_of::<T>();
+    out.reserve(bytes.len() / n);
+    match endian {
+        Endian::Little => out.extend(bytes.chunks_exact(n).map(T::from_le)),
+        Endian::Big => out.extend(bytes.chunks_exact(n).map(T::from_be)),
+    }
+}
+
+fn encode_into<T: Sample>(v: &[T], endian: Endian, out: &mut Vec<u8>) {
+    out.reserve(std::mem::size_of_val(v));
+    match endian {
+        Endian::Little => v.iter().for_each(|x| x.write_le(out)),
+        Endian::Big => v.iter().for_each(|x| x.write_be(out)),
+    }
+}
+
+impl Samples {
+    /// An empty buffer of the given type.
+    pub fn new(dtype: DType) -> Samples {
+        Samples::zeros(dtype, 0)
+    }
+
+    /// `n` zero samples.
+    pub fn zeros(dtype: DType, n: usize) -> Samples {
+        match dtype {
+            DType::U8 => Samples::U8(vec![0; n]),
+            DType::I8 => Samples::I8(vec![0; n]),
+            DType::U16 => Samples::U16(vec![0; n]),
+            DType::I16 => Samples::I16(vec![0; n]),
+            DType::U32 => Samples::U32(vec![0; n]),
+            DType::I32 => Samples::I32(vec![0; n]),
+            DType::F32 => Samples::F32(vec![0.0; n]),
+            DType::F64 => Samples::F64(vec![0.0; n]),
+        }
+    }
+
+    pub fn dtype(&self) -> DType {
+        match self {
+            Samples::U8(_) => DType::U8,
+            Samples::I8(_) => DType::I8,
+            Samples::U16(_) => DType::U16,
+            Samples::I16(_) => DType::I16,
+            Samples::U32(_) => DType::U32,
+            Samples::I32(_) => DType::I32,
+            Samples::F32(_) => DType::F32,
+            Samples::F64(_) => DType::F64,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        with_samples!(self, v => v.len())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Sample `i` as `f64` (raw stored value, before any scaling).
+    #[inline]
+    pub fn get_f64(&self, i: usize) -> f64 {
+        with_samples!(self, v => v[i].to_f64())
+    }
+
+    /// Sets sample `i` from an `f64` that is representable in the buffer's type.
+    pub fn set_f64(&mut self, i: usize, value: f64) {
+        match self {
+            Samples::U8(v) => v[i] = value as u8,
+            Samples::I8(v) => v[i] = value as i8,
+            Samples::U16(v) => v[i] = value as u16,
+            Samples::I16(v) => v[i] = value as i16,
+            Samples::U32(v) => v[i] = value as u32,
+            Samples::I32(v) => v[i] = value as i32,
+            Samples::F32(v) => v[i] = value as f32,
+            Samples::F64(v) => v[i] = value,
+        }
+    }
+
+    /// Replaces the content with samples decoded from `bytes` (length a multiple of the type size).
+    pub fn decode(&mut self, bytes: &[u8], endian: Endian) {
+        match self {
+            Samples::U8(v) => {
+                v.clear();
+                v.extend_from_slice(bytes)
+            }
+            Samples::I8(v) => decode_into(bytes, endian, v),
+            Samples::U16(v) => decode_into(bytes, endian, v),
+            Samples::I16(v) => decode_into(bytes, endian, v),
+            Samples::U32(v) => decode_into(bytes, endian, v),
+            Samples::I32(v) => decode_into(bytes, endian, v),
+            Samples::F32(v) => decode_into(bytes, endian, v),
+            Samples::F64(v) => decode_into(bytes, endian, v),
+        }
+    }
+
+    /// Appends the samples' bytes in the given byte order to `out`.
+    pub fn encode(&self, endian: Endian, out: &mut Vec<u8>) {
+        match self {
+            Samples::U8(v) => out.extend_from_slice(v),
+            Samples::I8(v) => encode_into(v, endian, out),
+            Samples::U16(v) => encode_into(v, endian, out),
+            Samples::I16(v) => encode_into(v, endian, out),
+            Samples::U32(v) => encode_into(v, endian, out),
+            Samples::I32(v) => encode_into(v, endian, out),
+            Samples::F32(v) => encode_into(v, endian, out),
+            Samples::F64(v) => encode_into(v, endian, out),
+        }
+    }
+
+    /// Converts to another type, rounding and saturating integers; `None` if a value would be lost
+    /// (out of range or non-integral for an integer target, NaN for an integer target).
+    pub fn convert_exact(&self, to: DType) -> Option<Samples> {
+        if to == self.dtype() {
+            return Some(self.clone());
+        }
+        let (lo, hi) = to.range();
+        let mut out = Samples::zeros(to, self.len());
+        for i in 0..self.len() {
+            let x = self.get_f64(i);
+            if !to.is_float() && (x.is_nan() || x < lo || x > hi || x.fract() != 0.0) {
+                return None;
+            }
+            if to == DType::F32 && x.is_finite() && (x as f32) as f64 != x {
+                return None;
+            }
+            out.set_f64(i, x);
+        }
+        Some(out)
+    }
+}

@@ -1,0 +1,125 @@
+//! Voxel-to-world geometry.
+
+/// Affine map from voxel indices `(i, j, k)` to world millimetres: `world = M·(i, j, k) + t`,
+/// stored as the top three rows of the 4×4 matrix (`m[r] = [M[r][0], M[r][1], M[r][2], t[r]]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Affine {
+    pub m: [[f64; 4]; 3],
+}
+
+impl Affine {
+    pub const IDENTITY: Affine = Affine {
+        m: [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ],
+    };
+
+    /// Axis-aligned voxels of the given size with voxel (0,0,0) at `origin`.
+    pub fn from_spacing(spacing: [f64; 3], origin: [f64; 3]) -> Affine {
+        let mut a = Affine::IDENTITY;
+        for r in 0..3 {
+            a.m[r][r] = spacing[r];
+            a.m[r][3] = origin[r];
+        }
+        a
+    }
+
+    /// From a direction matrix whose *columns* are the unit directions of i, j, k, the spacing,
+    /// and the origin.
+    pub fn from_parts(direction: [[f64; 3]; 3], spacing: [f64; 3], origin: [f64; 3]) -> Affine {
+        let mut a = Affine::IDENTITY;
+        for r in 0..3 {
+            for c in 0..3 {
+                a.m[r][c] = direction[r][c] * spacing[c];
+            }
+            a.m[r][3] = origin[r];
+        }
+        a
+    }
+
+    /// World position of a (possibly fractional) voxel index.
+    #[inline]
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        let m = &self.m;
+        [
+            m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * p[2] + m[0][3],
+            m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * p[2] + m[1][3],
+            m[2][0] * p[0] + m[2][1] * p[1] + m[2][2] * p[2] + m[2][3],
+        ]
+    }
+
+    /// The linear part applied to a vector (no translation).
+    #[inline]
+    pub fn apply_vector(&self, v: [f64; 3]) -> [f64; 3] {
+        let m = &self.m;
+        [
+            m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+            m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+            m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+        ]
+    }
+
+    /// Length of each column: the voxel size along i, j, k in millimetres.
+    pub fn spacing(&self) -> [f64; 3] {
+        let mut s = [0.0; 3];
+        for (c, sc) in s.iter_mut().enumerate() {
+            *sc = (0..3)
+                .map(|r| self.m[r][c] * self.m[r][c])
+                .sum::<f64>()
+                .sqrt();
+        }
+        s
+    }
+
+    /// Unit column directions (a column of zero length stays zero).
+    pub fn direction(&self) -> [[f64; 3]; 3] {
+        let s = self.spacing();
+        let mut d = [[0.0; 3]; 3];
+        for r in 0..3 {
+            for c in 0..3 {
+                d[r][c] = if s[c] > 0.0 { self.m[r][c] / s[c] } else { 0.0 };
+            }
+        }
+        d
+    }
+
+    pub fn origin(&self) -> [f64; 3] {
+        [self.m[0][3], self.m[1][3], self.m[2][3]]
+    }
+
+    /// Determinant of the linear part; negative for a left-handed voxel grid.
+    pub fn determinant(&self) -> f64 {
+        let m = &self.m;
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    }
+
+    /// Flips world x and y: RAS+ ↔ LPS+ (the same map both ways).
+    pub fn flip_xy(&self) -> Affine {
+        let mut a = *self;
+        for c in 0..4 {
+            a.m[0][c] = -a.m[0][c];
+            a.m[1][c] = -a.m[1][c];
+        }
+        a
+    }
+
+    /// True when every entry is finite and the linear part is invertible.
+    pub fn is_valid(&self) -> bool {
+        self.m.iter().flatten().all(|v| v.is_finite()) && self.determinant().abs() > 1e-12
+    }
+
+    /// Largest absolute difference between entries (for tests and round trips).
+    pub fn max_diff(&self, other: &Affine) -> f64 {
+        let mut d: f64 = 0.0;
+        for r in 0..3 {
+            for c in 0..4 {
+                d = d.max((self.m[r][c] - other.m[r][c]).abs());
+            }
+        }
+        d
+    }
+}

@@ -1,0 +1,469 @@
+//! MetaImage (`.mha` attached, `.mhd` + data file): ITK's text header. World coordinates in
+//! MetaImage are LPS (ITK's convention) and are converted to RAS on read and back on write.
+
+use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
+use super::{
+    Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling, SliceWriter,
+    VolumeInfo,
+};
+use crate::error::{Error, Result};
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug)]
+pub struct MetaHeader {
+    /// `Key = Value` fields in file order (ElementDataFile last).
+    pub fields: Vec<(String, String)>,
+    /// Detached data file, resolved against the header's directory.
+    pub data_file: Option<PathBuf>,
+}
+
+const MAX_HEADER: u64 = 1 << 20;
+
+fn meta_dtype(s: &str) -> Option<DType> {
+    Some(match s {
+        "MET_UCHAR" => DType::U8,
+        "MET_CHAR" => DType::I8,
+        "MET_USHORT" => DType::U16,
+        "MET_SHORT" => DType::I16,
+        "MET_UINT" => DType::U32,
+        "MET_INT" => DType::I32,
+        "MET_FLOAT" => DType::F32,
+        "MET_DOUBLE" => DType::F64,
+        _ => return None,
+    })
+}
+
+fn meta_type_name(t: DType) -> &'static str {
+    match t {
+        DType::U8 => "MET_UCHAR",
+        DType::I8 => "MET_CHAR",
+        DType::U16 => "MET_USHORT",
+        DType::I16 => "MET_SHORT",
+        DType::U32 => "MET_UINT",
+        DType::I32 => "MET_INT",
+        DType::F32 => "MET_FLOAT",
+        DType::F64 => "MET_DOUBLE",
+    }
+}
+
+fn truthy(s: &str) -> bool {
+    matches!(s.to_ascii_lowercase().as_str(), "true" | "1" | "yes")
+}
+
+pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
+    let mut rd = BufReader::new(file).take(MAX_HEADER);
+    let mut fields: Vec<(String, String)> = Vec::new();
+    let mut header_len = 0u64;
+    loop {
+        let mut raw = Vec::new();
+        let n = rd
+            .read_until(b'\n', &mut raw)
+            .map_err(|e| Error::io(path, "reading", e))?;
+        if n == 0 {
+            return Err(Error::input(
+                path,
+                "a header without ElementDataFile",
+                "a MetaImage header ending with ElementDataFile",
+            ));
+        }
+        header_len += n as u64;
+        let line = String::from_utf8_lossy(&raw).trim().to_string();
+        if line.is_empty() {
+            continue;
+        }
+        let (k, v) = line.split_once('=').ok_or_else(|| {
+            Error::input(
+                path,
+                format!("header line {line:?}"),
+                "\"Key = Value\" lines",
+            )
+        })?;
+        let (k, v) = (k.trim().to_string(), v.trim().to_string());
+        let last = k == "ElementDataFile";
+        fields.push((k, v));
+        if last {
+            break;
+        }
+    }
+    let get = |k: &str| {
+        fields
+            .iter()
+            .find(|(f, _)| f.eq_ignore_ascii_case(k))
+            .map(|(_, v)| v.as_str())
+    };
+    let nums = |k: &str| -> Result<Option<Vec<f64>>> {
+        match get(k) {
+            None => Ok(None),
+            Some(v) => v
+                .split_whitespace()
+                .map(|x| x.parse::<f64>())
+                .collect::<std::result::Result<Vec<_>, _>>()
+                .map(Some)
+                .map_err(|_| Error::input(path, format!("{k} = {v}"), format!("numbers for {k}"))),
+        }
+    };
+    let ndims = nums("NDims")?
+        .and_then(|v| v.first().copied())
+        .unwrap_or(3.0) as usize;
+    if !(1..=3).contains(&ndims) {
+        return Err(Error::input(
+            path,
+            format!("NDims = {ndims}"),
+            "a 3-D image",
+        ));
+    }
+    let size =
+        nums("DimSize")?.ok_or_else(|| Error::input(path, "no DimSize", "DimSize = NX NY NZ"))?;
+    if size.len() != ndims || size.iter().any(|&s| s < 0.0 || s.fract() != 0.0) {
+        return Err(Error::input(
+            path,
+            format!("DimSize {size:?}"),
+            format!("{ndims} non-negative integers"),
+        ));
+    }
+    let mut dims = [1usize; 3];
+    for (i, s) in size.iter().enumerate() {
+        dims[i] = *s as usize;
+    }
+    if let Some(ch) = nums("ElementNumberOfChannels")? {
+        if ch.first().copied().unwrap_or(1.0) != 1.0 {
+            return Err(Error::input(
+                path,
+                format!("{} channels per element", ch[0]),
+                "scalar samples (one channel)",
+            ));
+        }
+    }
+    let et = get("ElementType").ok_or_else(|| {
+        Error::input(
+            path,
+            "no ElementType",
+            "ElementType = MET_SHORT (or another MET_ type)",
+        )
+    })?;
+    let dtype = meta_dtype(et).ok_or_else(|| {
+        Error::input(path, format!("unsupported ElementType {et}"), "MET_UCHAR, MET_CHAR, MET_USHORT, MET_SHORT, MET_UINT, MET_INT, MET_FLOAT or MET_DOUBLE")
+    })?;
+    let msb = get("ElementByteOrderMSB")
+        .or_else(|| get("BinaryDataByteOrderMSB"))
+        .map(truthy)
+        .unwrap_or(false);
+    let endian = if msb { Endian::Big } else { Endian::Little };
+    let compressed = get("CompressedData").map(truthy).unwrap_or(false);
+    let spacing = nums("ElementSpacing")?
+        .or(nums("ElementSize")?)
+        .unwrap_or(vec![1.0; ndims]);
+    let origin = nums("Offset")?
+        .or(nums("Origin")?)
+        .or(nums("Position")?)
+        .unwrap_or(vec![0.0; ndims]);
+    let matrix = nums("TransformMatrix")?
+        .or(nums("Rotation")?)
+        .or(nums("Orientation")?);
+    let mut dir = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    if let Some(m) = matrix {
+        if m.len() == ndims * ndims && ndims == 3 {
+            // Row `axis` of TransformMatrix is the direction of that axis (ITK's reading).
+            for axis in 0..3 {
+                for w in 0..3 {
+                    dir[w][axis] = m[axis * 3 + w];
+                }
+            }
+        }
+    }
+    let sp: [f64; 3] = std::array::from_fn(|i| spacing.get(i).copied().unwrap_or(1.0));
+    let or: [f64; 3] = std::array::from_fn(|i| origin.get(i).copied().unwrap_or(0.0));
+    let affine = Affine::from_parts(dir, sp, or).flip_xy();
+    if !affine.is_valid() {
+        return Err(Error::input(
+            path,
+            "a degenerate ElementSpacing or TransformMatrix",
+            "an invertible voxel-to-world map",
+        ));
+    }
+    let df = get("ElementDataFile").unwrap_or("LOCAL");
+    let data_file = if df.eq_ignore_ascii_case("LOCAL") {
+        None
+    } else {
+        if df.starts_with("LIST") || df.contains('%') || df.contains(' ') {
+            return Err(Error::input(
+                path,
+                format!("ElementDataFile = {df} (several files)"),
+                "LOCAL or a single data file",
+            ));
+        }
+        let p = Path::new(df);
+        let full = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            path.parent().unwrap_or(Path::new(".")).join(p)
+        };
+        if !full.exists() {
+            return Err(Error::input(
+                path,
+                format!("data file {} does not exist", full.display()),
+                "the data file named by ElementDataFile",
+            ));
+        }
+        Some(full)
+    };
+    let header_size = nums("HeaderSize")?
+        .and_then(|v| v.first().copied())
+        .unwrap_or(0.0);
+    let compression = if compressed {
+        Compression::Zlib
+    } else {
+        Compression::None
+    };
+    let (offset, from_end) = match &data_file {
+        None => (header_len, false),
+        Some(_) if header_size == -1.0 => (0, true),
+        Some(_) => (header_size.max(0.0) as u64, false),
+    };
+    let data_path = data_file.clone().unwrap_or_else(|| path.to_path_buf());
+    let info = VolumeInfo {
+        path: path.to_path_buf(),
+        format: Format::MetaImage,
+        dims,
+        dtype,
+        affine,
+        scaling: Scaling::IDENTITY,
+        endian,
+        compression,
+        header: FormatHeader::MetaImage(MetaHeader {
+            fields,
+            data_file: data_file.clone(),
+        }),
+    };
+    let loc = DataLocation {
+        path: data_path,
+        offset,
+        compression,
+        skip: 0,
+        from_end: from_end && !compressed,
+        endian,
+        exact_size: data_file.is_some() && !compressed && header_size == 0.0,
+        read_trailer: false,
+    };
+    StreamReader::new(info, loc)
+}
+
+fn fmt3(v: [f64; 3]) -> String {
+    format!("{} {} {}", v[0], v[1], v[2])
+}
+
+/// Header fields for `source`, keeping a MetaImage source's own fields where they still apply.
+fn output_fields(source: &VolumeInfo, compressed: bool, data_file: &str) -> Vec<(String, String)> {
+    let lps = source.affine.flip_xy();
+    let dir = lps.direction();
+    let matrix: Vec<String> = (0..3)
+        .flat_map(|axis| (0..3).map(move |w| (axis, w)))
+        .map(|(a, w)| format!("{}", dir[w][a]))
+        .collect();
+    let ours: Vec<(String, String)> = vec![
+            ("ObjectType".into(), "Image".into()),
+            ("NDims".into(), "3".into()),
+            ("BinaryData".into(), "True".into()),
+            (
+                "BinaryDataByteOrderMSB".into(),
+                if source.endian == Endian::Big
+                    && matches!(source.header, FormatHeader::MetaImage(_))
+                {
+                    "True"
+                } else {
+                    "False"
+                }
+                .into(),
+            ),
+            (
+                "CompressedData".into(),
+                if compressed { "True" } else { "False" }.into(),
+            ),
+            ("TransformMatrix".into(), matrix.join(" ")),
+            ("Offset".into(), fmt3(lps.origin())),
+            ("ElementSpacing".into(), fmt3(lps.spacing())),
+            (
+                "DimSize".into(),
+                format!("{} {} {}", source.dims[0], source.dims[1], source.dims[2]),
+            ),
+            ("ElementType".into(), meta_type_name(source.dtype).into()),
+        ];
+    let mut fields = match &source.header {
+        FormatHeader::MetaImage(h) => h.fields.clone(),
+        _ => Vec::new(),
+    };
+    let drop = [
+        "ElementDataFile",
+        "CompressedDataSize",
+        "HeaderSize",
+        "ElementByteOrderMSB",
+        "Origin",
+        "Position",
+        "Rotation",
+        "Orientation",
+        "ElementSize",
+    ];
+    fields.retain(|(k, _)| !drop.iter().any(|d| d.eq_ignore_ascii_case(k)));
+    for (k, v) in ours {
+        match fields.iter_mut().find(|(f, _)| f.eq_ignore_ascii_case(&k)) {
+            Some(slot) => slot.1 = v,
+            None => fields.push((k, v)),
+        }
+    }
+    fields.push(("ElementDataFile".into(), data_file.into()));
+    fields
+}
+
+fn header_text(fields: &[(String, String)]) -> String {
+    fields.iter().map(|(k, v)| format!("{k} = {v}\n")).collect()
+}
+
+pub(crate) struct MetaWriter {
+    samples: SampleWriter,
+    path: PathBuf,
+    detached: bool,
+    compressed: bool,
+    endian: Endian,
+    /// Attached + compressed: the compressed data is staged here, then appended after the header
+    /// (which must state its size).
+    staged: Option<tempfile::NamedTempFile>,
+}
+
+pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<MetaWriter> {
+    let detached = path
+        .extension()
+        .map(|e| e.eq_ignore_ascii_case("mhd"))
+        .unwrap_or(false);
+    let compressed = match &source.header {
+        FormatHeader::MetaImage(_) => source.compression != Compression::None,
+        _ => true,
+    };
+    let endian = match &source.header {
+        FormatHeader::MetaImage(_) => source.endian,
+        _ => Endian::Little,
+    };
+    let stem = path
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string();
+    let (out, staged) = if detached {
+        let data = path.with_file_name(format!(
+            "{stem}.{}",
+            if compressed { "zraw" } else { "raw" }
+        ));
+        super::check_output_path(&data, source)?;
+        (
+            AtomicOutput::create(
+                &data,
+                if compressed {
+                    Compression::Zlib
+                } else {
+                    Compression::None
+                },
+            )?,
+            None,
+        )
+    } else if compressed {
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let staged = tempfile::Builder::new()
+            .prefix(".isotopo-")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(path, "creating", e))?;
+        let staged_path = staged.path().with_extension("zdata");
+        (
+            AtomicOutput::create(&staged_path, Compression::Zlib)?,
+            Some(staged),
+        )
+    } else {
+        let mut out = AtomicOutput::create(path, Compression::None)?;
+        out.write_all(header_text(&output_fields(source, false, "LOCAL")).as_bytes())?;
+        (out, None)
+    };
+    Ok(MetaWriter {
+        samples: SampleWriter {
+            out,
+            endian,
+            dtype: source.dtype,
+            slice_len: source.slice_len(),
+            buf: Vec::new(),
+        },
+        path: path.to_path_buf(),
+        detached,
+        compressed,
+        endian,
+        staged,
+    })
+}
+
+impl SliceWriter for MetaWriter {
+    fn write_slice(&mut self, slice: &Samples) -> Result<()> {
+        self.samples.write_slice(slice)
+    }
+
+    fn finish(self: Box<Self>, source: &VolumeInfo) -> Result<()> {
+        let mut src = source.clone();
+        src.endian = self.endian;
+        if let FormatHeader::MetaImage(_) = src.header {
+        } else {
+            src.endian = Endian::Little;
+        }
+        let data_path = self.samples.out.path().to_path_buf();
+        self.samples.out.commit()?;
+        if self.detached {
+            let name = data_path
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .to_string();
+            let mut fields = output_fields(&src, self.compressed, &name);
+            if self.compressed {
+                let size = std::fs::metadata(&data_path)
+                    .map_err(|e| Error::io(&data_path, "reading", e))?
+                    .len();
+                fields.insert(
+                    fields.len() - 1,
+                    ("CompressedDataSize".into(), size.to_string()),
+                );
+            }
+            let mut h = AtomicOutput::create(&self.path, Compression::None)?;
+            h.write_all(header_text(&fields).as_bytes())?;
+            h.commit()?;
+        } else if self.staged.is_some() {
+            // Header with the compressed size, then the staged data.
+            let result = (|| {
+                let size = std::fs::metadata(&data_path)
+                    .map_err(|e| Error::io(&data_path, "reading", e))?
+                    .len();
+                let mut fields = output_fields(&src, true, "LOCAL");
+                fields.insert(
+                    fields.len() - 1,
+                    ("CompressedDataSize".into(), size.to_string()),
+                );
+                let mut out = AtomicOutput::create(&self.path, Compression::None)?;
+                out.write_all(header_text(&fields).as_bytes())?;
+                let mut f = std::fs::File::open(&data_path)
+                    .map_err(|e| Error::io(&data_path, "reading", e))?;
+                let mut buf = vec![0u8; 1 << 20];
+                loop {
+                    let n = f
+                        .read(&mut buf)
+                        .map_err(|e| Error::io(&data_path, "reading", e))?;
+                    if n == 0 {
+                        break;
+                    }
+                    out.write_all(&buf[..n])?;
+                }
+                out.commit()
+            })();
+            let _ = std::fs::remove_file(&data_path);
+            result?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,240 @@
+//! Value statistics for `isotopo info`: range, quantiles, a histogram, NaN/Inf counts and a
+//! suggested isovalue (Otsu's threshold).
+
+use super::{DType, Sample, Samples, SliceReader};
+use crate::error::Result;
+use crate::progress::Progress;
+use crate::with_samples;
+
+/// Statistics of a volume's values (after the header's intensity scaling).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stats {
+    pub samples: u64,
+    pub nan: u64,
+    pub pos_inf: u64,
+    pub neg_inf: u64,
+    /// Over finite values.
+    pub min: f64,
+    pub max: f64,
+    pub mean: f64,
+    /// `(fraction, value)` pairs: 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99.
+    pub quantiles: Vec<(f64, f64)>,
+    /// Whether quantiles are exact (8/16-bit integers) or to within one of 4096 bins.
+    pub exact: bool,
+    /// Otsu's threshold between the two main populations of values.
+    pub otsu: f64,
+    /// Histogram over `[min, max]`: bin edges (`counts.len() + 1` of them) and counts.
+    pub edges: Vec<f64>,
+    pub counts: Vec<u64>,
+}
+
+const FINE_BINS: usize = 4096;
+const SHOWN_BINS: usize = 32;
+const QUANTILES: [f64; 7] = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99];
+
+/// Counts of values on a fine grid: exact per raw value for 8/16-bit integers, else 4096 bins.
+struct Fine {
+    lo: f64,
+    width: f64,
+    counts: Vec<u64>,
+}
+
+impl Fine {
+    fn value_of(&self, i: usize) -> f64 {
+        self.lo + self.width * i as f64
+    }
+}
+
+pub fn compute(reader: &mut dyn SliceReader, progress: &dyn Progress) -> Result<Stats> {
+    let info = reader.info().clone();
+    let scaling = info.scaling;
+    let nz = info.nz();
+    let exact = matches!(info.dtype, DType::U8 | DType::I8 | DType::U16 | DType::I16);
+    let mut slice = Samples::new(info.dtype);
+    let (mut nan, mut pinf, mut ninf, mut n) = (0u64, 0u64, 0u64, 0u64);
+    let (mut min, mut max, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    // Exact integer histograms are indexed by raw value.
+    let (raw_lo, raw_n) = match info.dtype {
+        DType::U8 => (0i64, 256usize),
+        DType::I8 => (-128, 256),
+        DType::U16 => (0, 65536),
+        DType::I16 => (-32768, 65536),
+        _ => (0, 0),
+    };
+    let mut raw_counts = vec![0u64; raw_n];
+    progress.start("statistics", nz as u64 * if exact { 1 } else { 2 });
+    for _ in 0..nz {
+        reader.read_slice(&mut slice)?;
+        if exact {
+            with_samples!(&slice, v => {
+                for &x in v.iter() {
+                    raw_counts[(x.to_f64() as i64 - raw_lo) as usize] += 1;
+                }
+            });
+        } else {
+            with_samples!(&slice, v => {
+                for &x in v.iter() {
+                    let x = scaling.apply(x.to_f64());
+                    if x.is_nan() {
+                        nan += 1;
+                    } else if x == f64::INFINITY {
+                        pinf += 1;
+                    } else if x == f64::NEG_INFINITY {
+                        ninf += 1;
+                    } else {
+                        n += 1;
+                        sum += x;
+                        min = min.min(x);
+                        max = max.max(x);
+                    }
+                }
+            });
+        }
+        progress.advance(1);
+    }
+    let fine = if exact {
+        for (i, &c) in raw_counts.iter().enumerate() {
+            if c > 0 {
+                let v = scaling.apply((i as i64 + raw_lo) as f64);
+                n += c;
+                sum += v * c as f64;
+                min = min.min(v);
+                max = max.max(v);
+            }
+        }
+        // Values in raw order; a negative slope reverses them.
+        let mut counts = raw_counts;
+        let (lo, width) = if scaling.slope < 0.0 {
+            counts.reverse();
+            (
+                scaling.apply((raw_lo + raw_n as i64 - 1) as f64),
+                -scaling.slope,
+            )
+        } else {
+            (scaling.apply(raw_lo as f64), scaling.slope)
+        };
+        Fine { lo, width, counts }
+    } else {
+        let width = if max > min {
+            (max - min) / FINE_BINS as f64
+        } else {
+            1.0
+        };
+        let mut counts = vec![0u64; FINE_BINS];
+        reader.rewind()?;
+        for _ in 0..nz {
+            reader.read_slice(&mut slice)?;
+            with_samples!(&slice, v => {
+                for &x in v.iter() {
+                    let x = scaling.apply(x.to_f64());
+                    if x.is_finite() {
+                        let b = (((x - min) / width) as usize).min(FINE_BINS - 1);
+                        counts[b] += 1;
+                    }
+                }
+            });
+            progress.advance(1);
+        }
+        Fine {
+            lo: min + width / 2.0,
+            width,
+            counts,
+        }
+    };
+    progress.finish();
+    let quantiles = QUANTILES
+        .iter()
+        .map(|&q| (q, quantile(&fine, n, q)))
+        .collect();
+    let otsu = otsu(&fine);
+    let (edges, counts) = coarse(&fine, min, max);
+    Ok(Stats {
+        samples: info.voxel_count(),
+        nan,
+        pos_inf: pinf,
+        neg_inf: ninf,
+        min: if n > 0 { min } else { f64::NAN },
+        max: if n > 0 { max } else { f64::NAN },
+        mean: if n > 0 { sum / n as f64 } else { f64::NAN },
+        quantiles,
+        exact,
+        otsu,
+        edges,
+        counts,
+    })
+}
+
+fn quantile(f: &Fine, n: u64, q: f64) -> f64 {
+    if n == 0 {
+        return f64::NAN;
+    }
+    let target = ((q * n as f64).ceil() as u64).clamp(1, n);
+    let mut acc = 0;
+    for (i, &c) in f.counts.iter().enumerate() {
+        acc += c;
+        if acc >= target {
+            return f.value_of(i);
+        }
+    }
+    f.value_of(f.counts.len() - 1)
+}
+
+/// Otsu's method: the threshold that maximises the variance between the values below and above.
+fn otsu(f: &Fine) -> f64 {
+    let total: u64 = f.counts.iter().sum();
+    if total == 0 {
+        return f64::NAN;
+    }
+    let sum_all: f64 = f
+        .counts
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| c as f64 * f.value_of(i))
+        .sum();
+    let (mut w0, mut sum0) = (0.0f64, 0.0f64);
+    let (mut best, mut best_t) = (-1.0f64, f.value_of(0));
+    let last = f.counts.iter().rposition(|&c| c > 0).unwrap_or(0);
+    for (i, &c) in f.counts.iter().enumerate().take(last) {
+        w0 += c as f64;
+        sum0 += c as f64 * f.value_of(i);
+        if c == 0 || w0 == 0.0 {
+            continue;
+        }
+        let w1 = total as f64 - w0;
+        if w1 <= 0.0 {
+            break;
+        }
+        let m0 = sum0 / w0;
+        let m1 = (sum_all - sum0) / w1;
+        let between = w0 * w1 * (m0 - m1) * (m0 - m1);
+        if between > best {
+            best = between;
+            // Threshold halfway to the next occupied value.
+            let next = (i + 1..f.counts.len())
+                .find(|&j| f.counts[j] > 0)
+                .unwrap_or(i + 1);
+            best_t = (f.value_of(i) + f.value_of(next)) / 2.0;
+        }
+    }
+    best_t
+}
+
+fn coarse(f: &Fine, min: f64, max: f64) -> (Vec<f64>, Vec<u64>) {
+    if !(min.is_finite() && max.is_finite()) {
+        return (vec![], vec![]);
+    }
+    let span = if max > min { max - min } else { 1.0 };
+    let bins = SHOWN_BINS;
+    let edges: Vec<f64> = (0..=bins)
+        .map(|i| min + span * i as f64 / bins as f64)
+        .collect();
+    let mut counts = vec![0u64; bins];
+    for (i, &c) in f.counts.iter().enumerate() {
+        if c == 0 {
+            continue;
+        }
+        let b = (((f.value_of(i) - min) / span * bins as f64) as usize).min(bins - 1);
+        counts[b] += c;
+    }
+    (edges, counts)
+}

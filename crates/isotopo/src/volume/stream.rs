@@ -1,0 +1,436 @@
+//! Byte streams under every format: reading samples from (possibly compressed) data at an
+//! offset, and writing files atomically (temp file + rename).
+
+use super::{
+    check_dims, Compression, DType, Endian, FormatHeader, Samples, SliceReader, VolumeInfo,
+};
+use crate::error::{Error, Result};
+use flate2::read::{MultiGzDecoder, ZlibDecoder};
+use std::fs::File;
+use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+const IO_BUFFER: usize = 1 << 20;
+/// Deflate cannot shrink data by much more than 1032:1; a header claiming more samples than that
+/// is corrupt, and is refused before allocating.
+const MAX_DEFLATE_RATIO: u64 = 1100;
+
+/// Where a volume's samples are: file, offset, compression, byte order.
+#[derive(Clone, Debug)]
+pub(crate) struct DataLocation {
+    /// File holding the samples (the header file itself for attached data).
+    pub path: PathBuf,
+    /// File offset of the first (possibly compressed) byte.
+    pub offset: u64,
+    pub compression: Compression,
+    /// Bytes to skip in the decompressed stream before the first sample (NRRD `byte skip`).
+    pub skip: u64,
+    /// Samples are the last bytes of the file (NRRD `byte skip: -1`, MetaImage `HeaderSize = -1`).
+    pub from_end: bool,
+    pub endian: Endian,
+    /// For uncompressed data: the file must hold exactly the samples after the offset (headerless
+    /// formats), rather than at least them.
+    pub exact_size: bool,
+    /// Read what follows the samples into the header (MGH's optional trailer).
+    pub read_trailer: bool,
+}
+
+/// Streams z-slices from a [`DataLocation`]; used by every format but TIFF and C-ordered NumPy.
+pub(crate) struct StreamReader {
+    info: VolumeInfo,
+    loc: DataLocation,
+    input: Option<Box<dyn Read + Send>>,
+    position: usize,
+    bytes: Vec<u8>,
+}
+
+fn data_bytes(info: &VolumeInfo) -> u64 {
+    info.voxel_count() * info.dtype.size() as u64
+}
+
+impl StreamReader {
+    pub fn new(info: VolumeInfo, loc: DataLocation) -> Result<StreamReader> {
+        check_dims(&info.path, info.dims, info.dtype)?;
+        let slice_bytes = info.slice_len() as u64 * info.dtype.size() as u64;
+        if slice_bytes > (1 << 34) {
+            return Err(Error::input(
+                &info.path,
+                format!(
+                    "one z-slice of {}×{} {} samples would take {} GiB",
+                    info.dims[0],
+                    info.dims[1],
+                    info.dtype,
+                    slice_bytes >> 30
+                ),
+                "slices of at most 16 GiB",
+            ));
+        }
+        let file_len = std::fs::metadata(&loc.path)
+            .map_err(|e| Error::io(&loc.path, "opening the data file of", e))?
+            .len();
+        let need = data_bytes(&info);
+        let mut loc = loc;
+        if loc.compression == Compression::None {
+            if loc.from_end {
+                if file_len < need {
+                    return Err(truncated_at_open(&info, &loc.path, file_len, need));
+                }
+                loc.offset = file_len - need;
+            }
+            let have = file_len.saturating_sub(loc.offset + loc.skip);
+            if have < need {
+                return Err(truncated_at_open(&info, &loc.path, have, need));
+            }
+            if loc.exact_size && have > need {
+                return Err(Error::input(
+                    &loc.path,
+                    format!(
+                        "{} bytes of data, {} more than {}×{}×{} {} samples need",
+                        have,
+                        have - need,
+                        info.dims[0],
+                        info.dims[1],
+                        info.dims[2],
+                        info.dtype
+                    ),
+                    format!("exactly {need} bytes (check the dimensions and the type)"),
+                ));
+            }
+        } else {
+            let compressed = file_len.saturating_sub(loc.offset).max(1);
+            if need / compressed > MAX_DEFLATE_RATIO {
+                return Err(Error::input(
+                    &loc.path,
+                    format!(
+                        "a header claiming {}×{}×{} {} samples ({} MB) for {} bytes of compressed data",
+                        info.dims[0], info.dims[1], info.dims[2], info.dtype, need >> 20, compressed
+                    ),
+                    "dimensions consistent with the file size (the header is corrupt)",
+                ));
+            }
+        }
+        let mut r = StreamReader {
+            info,
+            loc,
+            input: None,
+            position: 0,
+            bytes: Vec::new(),
+        };
+        r.rewind()?;
+        Ok(r)
+    }
+
+    fn read_error(&self, e: io::Error) -> Error {
+        let nz = self.info.nz();
+        let place = if self.position < nz {
+            format!("in z-slice {} of {nz}", self.position + 1)
+        } else {
+            "after the last z-slice (checksum or trailer)".to_string()
+        };
+        match e.kind() {
+            io::ErrorKind::UnexpectedEof => Error::input(
+                &self.loc.path,
+                format!("data ends {place} (the file is truncated)"),
+                format!(
+                    "{}×{}×{} {} samples",
+                    self.info.dims[0], self.info.dims[1], self.info.dims[2], self.info.dtype
+                ),
+            ),
+            io::ErrorKind::InvalidInput | io::ErrorKind::InvalidData
+                if self.loc.compression != Compression::None =>
+            {
+                Error::input(
+                    &self.loc.path,
+                    format!(
+                        "corrupt {} data {place} ({e})",
+                        compression_name(self.loc.compression)
+                    ),
+                    "a valid compressed stream",
+                )
+            }
+            _ => Error::io(&self.loc.path, "reading", e),
+        }
+    }
+}
+
+impl StreamReader {
+    /// After the last slice: keeps a trailer if the format has one, and for compressed data reads
+    /// to the end of the stream, so that the checksum is verified and corruption is caught.
+    fn read_to_end(&mut self) -> Result<()> {
+        if !self.loc.read_trailer && self.loc.compression == Compression::None {
+            return Ok(());
+        }
+        let mut rest = Vec::new();
+        let input = self.input.as_mut().expect("stream open");
+        let mut limited = input.take(1 << 20);
+        limited
+            .read_to_end(&mut rest)
+            .map_err(|e| self.read_error(e))?;
+        if self.loc.compression != Compression::None {
+            // Drain anything beyond the trailer limit too: the checksum is at the very end.
+            let input = self.input.as_mut().expect("stream open");
+            io::copy(input, &mut io::sink()).map_err(|e| self.read_error(e))?;
+        }
+        if self.loc.read_trailer {
+            if let FormatHeader::Mgh(h) = &mut self.info.header {
+                h.tail = rest;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn compression_name(c: Compression) -> &'static str {
+    match c {
+        Compression::None => "raw",
+        Compression::Gzip => "gzip",
+        Compression::Zlib => "zlib",
+    }
+}
+
+fn truncated_at_open(info: &VolumeInfo, path: &Path, have: u64, need: u64) -> Error {
+    Error::input(
+        path,
+        format!("only {have} bytes of sample data (the file is truncated, or the header is wrong)"),
+        format!(
+            "{need} bytes for {}×{}×{} {} samples",
+            info.dims[0], info.dims[1], info.dims[2], info.dtype
+        ),
+    )
+}
+
+impl SliceReader for StreamReader {
+    fn info(&self) -> &VolumeInfo {
+        &self.info
+    }
+
+    fn read_slice(&mut self, out: &mut Samples) -> Result<()> {
+        if self.position >= self.info.nz() {
+            return Err(Error::Internal(format!(
+                "read past the last slice of {}",
+                self.info.path.display()
+            )));
+        }
+        let n = self.info.slice_len() * self.info.dtype.size();
+        self.bytes.resize(n, 0);
+        let input = self.input.as_mut().expect("stream open");
+        if let Err(e) = input.read_exact(&mut self.bytes) {
+            return Err(self.read_error(e));
+        }
+        if out.dtype() != self.info.dtype {
+            *out = Samples::new(self.info.dtype);
+        }
+        out.decode(&self.bytes, self.loc.endian);
+        self.position += 1;
+        if self.position == self.info.nz() {
+            self.read_to_end()?;
+        }
+        Ok(())
+    }
+
+    fn position(&self) -> usize {
+        self.position
+    }
+
+    fn rewind(&mut self) -> Result<()> {
+        let path = &self.loc.path;
+        let mut file = File::open(path).map_err(|e| Error::io(path, "opening", e))?;
+        file.seek(SeekFrom::Start(self.loc.offset))
+            .map_err(|e| Error::io(path, "seeking in", e))?;
+        let buffered = BufReader::with_capacity(IO_BUFFER, file);
+        let mut input: Box<dyn Read + Send> = match self.loc.compression {
+            Compression::None => Box::new(buffered),
+            Compression::Gzip => Box::new(BufReader::with_capacity(
+                IO_BUFFER,
+                MultiGzDecoder::new(buffered),
+            )),
+            Compression::Zlib => Box::new(BufReader::with_capacity(
+                IO_BUFFER,
+                ZlibDecoder::new(buffered),
+            )),
+        };
+        if self.loc.skip > 0 {
+            let skipped = io::copy(&mut (&mut input).take(self.loc.skip), &mut io::sink())
+                .map_err(|e| Error::io(path, "reading", e))?;
+            if skipped < self.loc.skip {
+                return Err(Error::input(
+                    path,
+                    format!("data ends within the {} bytes to skip", self.loc.skip),
+                    "sample data after the skipped bytes",
+                ));
+            }
+        }
+        self.input = Some(input);
+        self.position = 0;
+        Ok(())
+    }
+}
+
+/// Refuses output paths that would destroy the input: the same file (also via another name or a
+/// link), or the input's detached data file. Also checks that the directory exists.
+pub fn check_output_path(out: &Path, source: &VolumeInfo) -> Result<()> {
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::usage(format!(
+            "{}: the output directory {} does not exist",
+            out.display(),
+            dir.display()
+        )));
+    }
+    let mut inputs = vec![source.path.clone()];
+    match &source.header {
+        FormatHeader::Nrrd(h) => inputs.extend(h.data_file.clone()),
+        FormatHeader::MetaImage(h) => inputs.extend(h.data_file.clone()),
+        _ => {}
+    }
+    for input in inputs {
+        if same_file(out, &input) {
+            return Err(Error::usage(format!(
+                "{}: the output would overwrite the input {}; choose another output path",
+                out.display(),
+                input.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            return ma.dev() == mb.dev() && ma.ino() == mb.ino();
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = (ma, mb);
+        }
+    }
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// A file being written: bytes go to a temporary file beside the target, which replaces the
+/// target only on [`AtomicOutput::commit`]. Dropped without commit, it leaves nothing behind.
+pub struct AtomicOutput {
+    path: PathBuf,
+    sink: Sink,
+}
+
+enum Sink {
+    /// Only while switching from plain to compressed.
+    Switching,
+    Plain(BufWriter<tempfile::NamedTempFile>),
+    Gzip(flate2::write::GzEncoder<BufWriter<tempfile::NamedTempFile>>),
+    Zlib(flate2::write::ZlibEncoder<BufWriter<tempfile::NamedTempFile>>),
+}
+
+/// gzip level for written files: 6 is zlib's default and what most tools use.
+const GZIP_LEVEL: u32 = 6;
+
+impl AtomicOutput {
+    pub fn create(path: &Path, compression: Compression) -> Result<AtomicOutput> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".isotopo-")
+            .suffix(".part")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(path, "creating", e))?;
+        let mut out = AtomicOutput {
+            path: path.to_path_buf(),
+            sink: Sink::Plain(BufWriter::with_capacity(IO_BUFFER, tmp)),
+        };
+        out.begin_compression(compression);
+        Ok(out)
+    }
+
+    /// Everything written from now on is compressed (NRRD and MetaImage: after the text header).
+    pub fn begin_compression(&mut self, compression: Compression) {
+        let level = flate2::Compression::new(GZIP_LEVEL);
+        self.sink = match std::mem::replace(&mut self.sink, Sink::Switching) {
+            Sink::Plain(w) => match compression {
+                Compression::None => Sink::Plain(w),
+                Compression::Gzip => Sink::Gzip(flate2::write::GzEncoder::new(w, level)),
+                Compression::Zlib => Sink::Zlib(flate2::write::ZlibEncoder::new(w, level)),
+            },
+            other => other,
+        };
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn write_all(&mut self, bytes: &[u8]) -> Result<()> {
+        let r = match &mut self.sink {
+            Sink::Plain(w) => w.write_all(bytes),
+            Sink::Gzip(w) => w.write_all(bytes),
+            Sink::Zlib(w) => w.write_all(bytes),
+            Sink::Switching => unreachable!("sink left switching"),
+        };
+        r.map_err(|e| Error::io(&self.path, "writing", e))
+    }
+
+    /// Completes compression, flushes, and moves the file into place.
+    pub fn commit(self) -> Result<()> {
+        let path = self.path;
+        let err = |e: io::Error| Error::io(&path, "writing", e);
+        let buffered = match self.sink {
+            Sink::Plain(w) => w,
+            Sink::Gzip(w) => w.finish().map_err(err)?,
+            Sink::Zlib(w) => w.finish().map_err(err)?,
+            Sink::Switching => unreachable!("sink left switching"),
+        };
+        let tmp = buffered.into_inner().map_err(|e| err(e.into_error()))?;
+        tmp.as_file().sync_all().map_err(err)?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = tmp
+                .as_file()
+                .set_permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        tmp.persist(&path)
+            .map_err(|e| Error::io(&path, "moving into place", e.error))?;
+        Ok(())
+    }
+}
+
+/// Output of a format whose header is written before the samples: one atomic file, header bytes
+/// first (uncompressed for NRRD/MetaImage headers, inside the stream for NIfTI/MGZ).
+pub(crate) struct SampleWriter {
+    pub out: AtomicOutput,
+    pub endian: Endian,
+    pub dtype: DType,
+    pub slice_len: usize,
+    pub buf: Vec<u8>,
+}
+
+impl SampleWriter {
+    pub fn write_slice(&mut self, slice: &Samples) -> Result<()> {
+        if slice.dtype() != self.dtype || slice.len() != self.slice_len {
+            return Err(Error::Internal(format!(
+                "slice of {} {} written to a {} volume with {} samples per slice",
+                slice.len(),
+                slice.dtype(),
+                self.dtype,
+                self.slice_len
+            )));
+        }
+        self.buf.clear();
+        slice.encode(self.endian, &mut self.buf);
+        let buf = std::mem::take(&mut self.buf);
+        let r = self.out.write_all(&buf);
+        self.buf = buf;
+        r
+    }
+}
