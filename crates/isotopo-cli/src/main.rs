@@ -4,10 +4,12 @@
 mod progress;
 
 use clap::{Args, Parser, Subcommand};
+use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
 use isotopo::volume::{self, DType, Endian, ReadOptions};
 use isotopo::{Error, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 #[derive(Parser)]
 #[command(name = "isotopo", version, about = "Find, measure and remove small topological handles of isosurfaces of 3D volumes", long_about = None)]
@@ -22,6 +24,86 @@ enum Command {
     Info(InfoArgs),
     /// Convert a volume to another format (chosen by the output extension).
     Convert(ConvertArgs),
+    /// Genus of every surface of the isosurface and the solid's Betti numbers (one streaming pass).
+    Genus(GenusArgs),
+    /// Extract the isosurface as a mesh (.ply binary, .obj or .stl), in world millimetres.
+    Mesh(MeshArgs),
+}
+
+/// Which isosurface: the isovalue, the inside side and the digital connectivity.
+#[derive(Args, Clone)]
+struct SurfaceArgs {
+    /// Isovalue, in the volume's values (after any NIfTI scl_slope/scl_inter).
+    #[arg(long, allow_negative_numbers = true)]
+    iso: f64,
+    /// Inside is above the isovalue (CT, probability maps) or below it (signed distance fields).
+    #[arg(long, value_enum, default_value = "above")]
+    inside: InsideArg,
+    /// Digital connectivity of the solid: 6 (inside 6-adjacent, outside 26) or 26 (the reverse).
+    #[arg(long, default_value = "6", value_parser = parse_connectivity)]
+    connectivity: Connectivity,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum InsideArg {
+    Above,
+    Below,
+}
+
+impl SurfaceArgs {
+    fn options(&self) -> Result<SurfaceOptions> {
+        if !self.iso.is_finite() {
+            return Err(Error::usage("--iso must be a finite number"));
+        }
+        Ok(SurfaceOptions {
+            iso: self.iso,
+            inside: match self.inside {
+                InsideArg::Above => Inside::Above,
+                InsideArg::Below => Inside::Below,
+            },
+            connectivity: self.connectivity,
+        })
+    }
+}
+
+fn parse_connectivity(s: &str) -> std::result::Result<Connectivity, String> {
+    match s {
+        "6" => Ok(Connectivity::Six),
+        "26" => Ok(Connectivity::TwentySix),
+        _ => Err("use 6 or 26".into()),
+    }
+}
+
+#[derive(Args)]
+struct GenusArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    /// Print one JSON object (b0, b1, b2, chi, surfaces…) instead of text.
+    #[arg(long)]
+    json: bool,
+    /// List every surface, not only the 20 of highest genus.
+    #[arg(long)]
+    all: bool,
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct MeshArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    /// Output mesh: .ply (binary), .obj or .stl.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Keep only the surface of largest area.
+    #[arg(long)]
+    largest: bool,
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 /// How to read the input; the raw options describe headerless files.
@@ -130,6 +212,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => cmd_info(a),
         Command::Convert(a) => cmd_convert(a),
+        Command::Genus(a) => cmd_genus(a),
+        Command::Mesh(a) => cmd_mesh(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -289,4 +373,123 @@ fn cmd_convert(a: ConvertArgs) -> Result<()> {
     let bars = progress::Bars::new(a.quiet);
     let _ = &bars;
     volume::convert(reader.as_mut(), &a.output)
+}
+
+fn inside_name(i: Inside) -> &'static str {
+    match i {
+        Inside::Above => "above",
+        Inside::Below => "below",
+    }
+}
+
+fn to_json(v: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string_pretty(v).map_err(|e| Error::Internal(e.to_string()))
+}
+
+fn cmd_genus(a: GenusArgs) -> Result<()> {
+    let opts = a.surface.options()?;
+    let mut reader = a.input.open()?;
+    let info = reader.info().clone();
+    let bars = progress::Bars::new(a.quiet || a.json);
+    let t = Instant::now();
+    let r = isotopo::topology::genus(reader.as_mut(), &opts, &bars)?;
+    let secs = t.elapsed().as_secs_f64();
+    if a.json {
+        let v = serde_json::json!({
+            "file": info.path,
+            "dims": info.dims,
+            "iso": opts.iso,
+            "inside": inside_name(opts.inside),
+            "connectivity": opts.connectivity.number(),
+            "b0": r.b0,
+            "b1": r.b1,
+            "b2": r.b2,
+            "chi": r.chi,
+            "surfaces": r.surfaces,
+            "seconds": secs,
+        });
+        println!("{}", to_json(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{}: iso {}, inside {}, connectivity {}",
+        info.path.display(),
+        num(opts.iso),
+        inside_name(opts.inside),
+        opts.connectivity.number()
+    );
+    println!(
+        "solid       b0 = {} components, b1 = {} handles (total genus), b2 = {} cavities, chi = {}",
+        r.b0, r.b1, r.b2, r.chi
+    );
+    let with_genus = r.surfaces.iter().filter(|s| s.genus > 0).count();
+    println!(
+        "surfaces    {} ({} enclosing material, {} cavities; {} with genus > 0)",
+        r.surfaces.len(),
+        r.b0,
+        r.b2,
+        with_genus
+    );
+    let shown = if a.all {
+        r.surfaces.len()
+    } else {
+        r.surfaces.len().min(20)
+    };
+    if shown > 0 {
+        println!(
+            "  {:>5} {:>6}  {:<8} {:>12} {:>9}  bbox (voxels)",
+            "id", "genus", "encloses", "area mm²", "surfels"
+        );
+    }
+    for s in r.surfaces.iter().take(shown) {
+        println!(
+            "  {:>5} {:>6}  {:<8} {:>12.1} {:>9}  [{}..{}, {}..{}, {}..{}]",
+            s.id,
+            s.genus,
+            match s.encloses {
+                isotopo::topology::Encloses::Material => "material",
+                isotopo::topology::Encloses::Cavity => "cavity",
+            },
+            s.area,
+            s.surfels,
+            s.bbox.min[0],
+            s.bbox.max[0],
+            s.bbox.min[1],
+            s.bbox.max[1],
+            s.bbox.min[2],
+            s.bbox.max[2]
+        );
+    }
+    if shown < r.surfaces.len() {
+        println!("  … {} more (--all lists them)", r.surfaces.len() - shown);
+    }
+    println!(
+        "time        {:.2} s ({:.1} Mvoxels/s)",
+        secs,
+        info.voxel_count() as f64 / secs / 1e6
+    );
+    Ok(())
+}
+
+fn cmd_mesh(a: MeshArgs) -> Result<()> {
+    let opts = a.surface.options()?;
+    let mut reader = a.input.open()?;
+    volume::check_output_path(&a.output, reader.info())?;
+    let bars = progress::Bars::new(a.quiet);
+    let t = Instant::now();
+    let mesh = isotopo::mesh::extract(reader.as_mut(), &opts, a.largest, &bars)?;
+    let secs = t.elapsed().as_secs_f64();
+    mesh.write(&a.output)?;
+    let chi = mesh.euler_characteristic();
+    if !a.quiet {
+        println!(
+            "{}: {} vertices, {} triangles, Euler characteristic {} ({:.2} s extraction)",
+            a.output.display(),
+            group(mesh.vertices.len() as u64),
+            group(mesh.triangles.len() as u64),
+            chi,
+            secs
+        );
+    }
+    Ok(())
 }

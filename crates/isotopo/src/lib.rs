@@ -16,12 +16,17 @@
 //!
 //! - [`volume`]: reading and writing NIfTI, NRRD, MGH/MGZ, MetaImage, NumPy, raw and TIFF,
 //!   streamed by z-slice.
+//! - [`topology`]: the cube cases derived from the digital-topology rule, surfels of a slice, and
+//!   the streaming genus pass.
 
 // Index loops read better than iterator chains in the matrix and grid code here.
 #![allow(clippy::needless_range_loop)]
 
 pub mod error;
+pub mod mesh;
 pub mod progress;
+pub mod topology;
+pub mod unionfind;
 pub mod volume;
 
 pub use error::{Error, Result};

@@ -1,0 +1,427 @@
+//! The streaming genus pass: every closed surface's genus, area, bounding box and whether it
+//! encloses material or a cavity, and the solid's Betti numbers — two planes in memory at a time.
+//!
+//! Each slice's pieces are grouped into ribbons; ribbons of consecutive slices that share
+//! segments on the plane between them are joined in a union-find over ribbons. A surface's Euler
+//! characteristic is the sum of its pieces' shares (`Piece::chi4`), so its genus follows from
+//! `genus = (2 - chi) / 2`. Surfaces enclosing material count in `b0`, cavities in `b2`, and the
+//! total genus is `b1` (DESIGN.md §2).
+
+use super::cases::{cases, Connectivity};
+use super::mask::{Classifier, Inside, PlaneMask};
+use super::slice::SliceSurfels;
+use super::values::{edge_point, SliceValues};
+use crate::error::{Error, Result};
+use crate::progress::Progress;
+use crate::unionfind::UnionFind;
+use crate::volume::{Affine, Samples, SliceReader, VolumeInfo};
+use rayon::prelude::*;
+
+/// What defines the isosurface: the isovalue, which side is inside, and the digital connectivity.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct SurfaceOptions {
+    /// Isovalue, in the volume's value units (after the header's scaling).
+    pub iso: f64,
+    /// Inside is above the isovalue (default) or below it (signed distance fields).
+    pub inside: Inside,
+    /// Digital connectivity of the solid; 6 by default.
+    pub connectivity: Connectivity,
+}
+
+impl SurfaceOptions {
+    pub fn classifier(&self, info: &VolumeInfo) -> Classifier {
+        Classifier {
+            iso: self.iso,
+            inside: self.inside,
+            scaling: info.scaling,
+        }
+    }
+}
+
+/// What a closed surface bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Encloses {
+    /// The outer boundary of a component of the solid.
+    Material,
+    /// The boundary of a void inside the solid.
+    Cavity,
+}
+
+/// Inclusive bounds in voxel indices.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct BBox {
+    pub min: [i64; 3],
+    pub max: [i64; 3],
+}
+
+impl BBox {
+    pub const EMPTY: BBox = BBox {
+        min: [i64::MAX; 3],
+        max: [i64::MIN; 3],
+    };
+    pub fn include(&mut self, p: [i64; 3]) {
+        for a in 0..3 {
+            self.min[a] = self.min[a].min(p[a]);
+            self.max[a] = self.max[a].max(p[a]);
+        }
+    }
+    pub fn union(&mut self, o: &BBox) {
+        self.include(o.min);
+        self.include(o.max);
+    }
+    /// Corners in millimetres (the box of the transformed voxel box).
+    pub fn to_mm(&self, affine: &Affine) -> [[f64; 3]; 2] {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for c in 0..8 {
+            let p = [
+                if c & 1 == 0 { self.min[0] } else { self.max[0] } as f64,
+                if c & 2 == 0 { self.min[1] } else { self.max[1] } as f64,
+                if c & 4 == 0 { self.min[2] } else { self.max[2] } as f64,
+            ];
+            let w = affine.apply(p);
+            for a in 0..3 {
+                lo[a] = lo[a].min(w[a]);
+                hi[a] = hi[a].max(w[a]);
+            }
+        }
+        [lo, hi]
+    }
+}
+
+/// One closed surface.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SurfaceInfo {
+    /// Stable id: surfaces are numbered by their lowest point (z, then y, then x).
+    pub id: usize,
+    pub genus: u32,
+    /// Euler characteristic of the surface.
+    pub chi: i64,
+    pub encloses: Encloses,
+    /// Area in mm² of the triangulated surface (vertices interpolated on cube edges).
+    pub area: f64,
+    /// Voxel index bounds of the cubes it passes through (clamped to the volume).
+    pub bbox: BBox,
+    /// The same box in millimetres.
+    pub bbox_mm: [[f64; 3]; 2],
+    /// Number of surfels (pieces in cubes).
+    pub surfels: u64,
+}
+
+/// The genus pass's result.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GenusReport {
+    /// Components of the solid.
+    pub b0: u64,
+    /// Independent loops of the solid = total genus of its surfaces = number of handles.
+    pub b1: u64,
+    /// Cavities of the solid.
+    pub b2: u64,
+    /// Euler characteristic of the solid, b0 - b1 + b2.
+    pub chi: i64,
+    /// Surfaces, by decreasing genus then area.
+    pub surfaces: Vec<SurfaceInfo>,
+}
+
+/// Per-ribbon facts accumulated into surfaces.
+#[derive(Clone, Debug)]
+pub(crate) struct RibbonStats {
+    pub chi4: i64,
+    pub area: f64,
+    pub bbox: BBox,
+    /// (z, j, i) of the ribbon's first cube: orders surfaces by their lowest point.
+    pub key: (i32, u32, u32),
+    pub upper_inside: Option<bool>,
+    pub surfels: u64,
+}
+
+/// Joins ribbons slice after slice into surfaces.
+#[derive(Default)]
+pub(crate) struct SurfaceTracker {
+    pub uf: UnionFind,
+    pub ribbons: Vec<RibbonStats>,
+}
+
+impl SurfaceTracker {
+    /// Adds the ribbons of `cur`, joined to those of `prev` (the slice below, whose ribbons
+    /// start at `prev_base`). Returns the base index of `cur`'s ribbons.
+    pub fn add_slice(
+        &mut self,
+        cur: &SliceSurfels,
+        areas: &[f64],
+        prev: Option<(&SliceSurfels, u32)>,
+        conn: Connectivity,
+    ) -> Result<u32> {
+        let base = self.ribbons.len() as u32;
+        let (nx, ny) = (cur.nx as i64, cur.ny as i64);
+        for (r, rb) in cur.ribbons.iter().enumerate() {
+            self.uf.push();
+            let c = cur.cubes[rb.first_cube as usize];
+            let mut bbox = BBox::EMPTY;
+            // Cubes span samples i-1 ..= i along x (padded index i); clamp to the volume.
+            let z = cur.z as i64;
+            bbox.include([
+                (rb.min[0] as i64 - 1).max(0),
+                (rb.min[1] as i64 - 1).max(0),
+                z.max(0),
+            ]);
+            bbox.include([
+                (rb.max[0] as i64).min(nx - 1),
+                (rb.max[1] as i64).min(ny - 1),
+                z + 1,
+            ]);
+            self.ribbons.push(RibbonStats {
+                chi4: rb.surface_chi4 as i64,
+                area: areas.get(r).copied().unwrap_or(0.0),
+                bbox,
+                key: (cur.z, c.j, c.i),
+                upper_inside: rb.upper_inside,
+                surfels: rb.pieces as u64,
+            });
+        }
+        if let Some((p, pbase)) = prev {
+            if p.top.len() != cur.bottom.len() {
+                return Err(Error::Internal(format!(
+                    "plane {}: {} squares from below, {} from above",
+                    cur.z,
+                    p.top.len(),
+                    cur.bottom.len()
+                )));
+            }
+            let table = cases(conn);
+            for (&qa, &qb) in p.top.iter().zip(&cur.bottom) {
+                let n = table[p.cubes[qa as usize].case as usize].face_owner[5]
+                    .iter()
+                    .filter(|&&o| o != super::cases::NONE)
+                    .count();
+                for slot in 0..n {
+                    let ra = pbase + p.face_ribbon(table, qa as usize, 5, slot);
+                    let rb = base + cur.face_ribbon(table, qb as usize, 4, slot);
+                    self.uf.union(ra, rb);
+                }
+            }
+        }
+        Ok(base)
+    }
+
+    /// Folds ribbons into surfaces and computes the report.
+    pub fn report(&mut self, dims: [usize; 3], affine: &Affine) -> Result<GenusReport> {
+        let n = self.ribbons.len();
+        let mut root_index = vec![u32::MAX; n];
+        let mut acc: Vec<RibbonStats> = Vec::new();
+        for r in 0..n {
+            let root = self.uf.find(r as u32) as usize;
+            if root_index[root] == u32::MAX {
+                root_index[root] = acc.len() as u32;
+                acc.push(RibbonStats {
+                    chi4: 0,
+                    area: 0.0,
+                    bbox: BBox::EMPTY,
+                    key: (i32::MAX, u32::MAX, u32::MAX),
+                    upper_inside: None,
+                    surfels: 0,
+                });
+            }
+            let a = &mut acc[root_index[root] as usize];
+            let rb = &self.ribbons[r];
+            a.chi4 += rb.chi4;
+            a.area += rb.area;
+            a.bbox.union(&rb.bbox);
+            a.surfels += rb.surfels;
+            if rb.key < a.key {
+                a.key = rb.key;
+                a.upper_inside = rb.upper_inside;
+            }
+        }
+        let _ = dims;
+        let mut surfaces = Vec::with_capacity(acc.len());
+        for a in &acc {
+            if a.chi4 % 8 != 0 {
+                return Err(Error::Internal(format!(
+                    "a surface has Euler characteristic {}/4, not an even integer",
+                    a.chi4
+                )));
+            }
+            let chi = a.chi4 / 4;
+            if chi > 2 {
+                return Err(Error::Internal(format!(
+                    "a connected surface has Euler characteristic {chi} > 2"
+                )));
+            }
+            let mut bbox = a.bbox;
+            for k in 0..3 {
+                bbox.min[k] = bbox.min[k].clamp(0, dims[k] as i64 - 1);
+                bbox.max[k] = bbox.max[k].clamp(0, dims[k] as i64 - 1);
+            }
+            surfaces.push((
+                a.key,
+                SurfaceInfo {
+                    id: 0,
+                    genus: ((2 - chi) / 2) as u32,
+                    chi,
+                    encloses: if a.upper_inside.unwrap_or(true) {
+                        Encloses::Material
+                    } else {
+                        Encloses::Cavity
+                    },
+                    area: a.area,
+                    bbox,
+                    bbox_mm: bbox.to_mm(affine),
+                    surfels: a.surfels,
+                },
+            ));
+        }
+        surfaces.sort_by_key(|s| s.0);
+        let mut surfaces: Vec<SurfaceInfo> = surfaces
+            .into_iter()
+            .enumerate()
+            .map(|(id, (_, mut s))| {
+                s.id = id;
+                s
+            })
+            .collect();
+        let b0 = surfaces
+            .iter()
+            .filter(|s| s.encloses == Encloses::Material)
+            .count() as u64;
+        let b2 = surfaces.len() as u64 - b0;
+        let b1: u64 = surfaces.iter().map(|s| s.genus as u64).sum();
+        surfaces.sort_by(|a, b| {
+            b.genus
+                .cmp(&a.genus)
+                .then(
+                    b.area
+                        .partial_cmp(&a.area)
+                        .unwrap_or(std::cmp::Ordering::Equal),
+                )
+                .then(a.id.cmp(&b.id))
+        });
+        Ok(GenusReport {
+            b0,
+            b1,
+            b2,
+            chi: b0 as i64 - b1 as i64 + b2 as i64,
+            surfaces,
+        })
+    }
+}
+
+/// Area (mm²) of each ribbon of a slice, from its triangles with interpolated vertices.
+pub(crate) fn ribbon_areas(
+    s: &SliceSurfels,
+    values: &SliceValues,
+    iso: f64,
+    affine: &Affine,
+    conn: Connectivity,
+) -> Vec<f64> {
+    let table = cases(conn);
+    let mut areas = vec![0.0; s.ribbons.len()];
+    for cube in &s.cubes {
+        let case = &table[cube.case as usize];
+        let v = values.corners(cube.i, cube.j);
+        let mut pts = [[0.0f64; 3]; 12];
+        let mut have = 0u16;
+        for (k, piece) in case.pieces.iter().enumerate() {
+            let mut a = 0.0;
+            for t in &piece.triangles {
+                let mut p = [[0.0; 3]; 3];
+                for (m, &e) in t.iter().enumerate() {
+                    if have & (1 << e) == 0 {
+                        pts[e as usize] = edge_point(&v, e, iso);
+                        have |= 1 << e;
+                    }
+                    p[m] = pts[e as usize];
+                }
+                let u =
+                    affine.apply_vector([p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]]);
+                let w =
+                    affine.apply_vector([p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]]);
+                let c = [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ];
+                a += 0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            }
+            areas[s.piece_ribbon[(cube.first_piece + k as u32) as usize] as usize] += a;
+        }
+    }
+    areas
+}
+
+/// Slices per parallel batch: enough work per thread, little memory.
+const BATCH: usize = 16;
+
+/// Runs the genus pass over a volume, streaming its slices.
+pub fn genus(
+    reader: &mut dyn SliceReader,
+    opts: &SurfaceOptions,
+    progress: &dyn Progress,
+) -> Result<GenusReport> {
+    let info = reader.info().clone();
+    let [nx, ny, nz] = info.dims;
+    let classifier = opts.classifier(&info);
+    let conn = opts.connectivity;
+    let mut tracker = SurfaceTracker::default();
+    progress.start("genus", nz as u64 + 1);
+    // Planes -1 ..= nz with their samples; a batch covers slices z0 .. z0 + BATCH (lower planes).
+    let mut lower_plane = PlaneMask::empty(nx, ny);
+    let mut lower_values: Option<Samples> = None;
+    let mut prev: Option<(SliceSurfels, u32)> = None;
+    let mut z0: i32 = -1;
+    while z0 < nz as i32 {
+        let z1 = (z0 + BATCH as i32).min(nz as i32); // slices z0 .. z1 (exclusive)
+                                                     // Upper planes z0+1 ..= z1.
+        let mut planes = Vec::with_capacity((z1 - z0) as usize);
+        let mut values = Vec::with_capacity((z1 - z0) as usize);
+        for p in z0 + 1..=z1 {
+            if p < nz as i32 {
+                let mut s = Samples::new(info.dtype);
+                reader.read_slice(&mut s)?;
+                values.push(Some(s));
+            } else {
+                values.push(None);
+            }
+            planes.push(PlaneMask::empty(nx, ny));
+        }
+        planes
+            .par_iter_mut()
+            .zip(values.par_iter())
+            .for_each(|(plane, v)| {
+                if let Some(v) = v {
+                    plane.fill(v, &classifier);
+                }
+            });
+        let built: Vec<(SliceSurfels, Vec<f64>)> = (0..(z1 - z0) as usize)
+            .into_par_iter()
+            .map(|k| {
+                let (lo, lo_v) = if k == 0 {
+                    (&lower_plane, lower_values.as_ref())
+                } else {
+                    (&planes[k - 1], values[k - 1].as_ref())
+                };
+                let s = SliceSurfels::build(lo, &planes[k], z0 + k as i32, conn);
+                let sv = SliceValues {
+                    lower: lo_v,
+                    upper: values[k].as_ref(),
+                    nx,
+                    ny,
+                    scaling: info.scaling,
+                };
+                let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
+                (s, areas)
+            })
+            .collect();
+        for (s, areas) in built {
+            let base = tracker.add_slice(&s, &areas, prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
+            prev = Some((s, base));
+            progress.advance(1);
+        }
+        lower_plane = planes.pop().unwrap_or_else(|| PlaneMask::empty(nx, ny));
+        lower_values = values.pop().flatten();
+        z0 = z1;
+    }
+    progress.finish();
+    tracker.report(info.dims, &info.affine)
+}

@@ -1,0 +1,296 @@
+//! Surfels of one slice: the surface pieces in the cubes between two z-planes, their adjacency
+//! across the cubes' side faces, and the ribbons (connected pieces within the slice) they form.
+//!
+//! ```text
+//!   plane z+1  o-----o-----o        a cube (i, j) spans padded columns i, i+1 and rows j, j+1
+//!              |     |     |        of both planes; only "mixed" cubes (corners not all the
+//!   plane z    o-----o-----o        same) hold pieces, so only those are listed.
+//! ```
+//!
+//! Pieces are numbered per slice: cube `q` owns pieces `first_piece .. first_piece + n`.
+
+use super::cases::{cases, Case, Connectivity, EDGE_AXIS, EDGE_CORNERS, NONE};
+use super::mask::PlaneMask;
+use crate::unionfind::UnionFind;
+
+/// A cube with pieces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cube {
+    /// Padded column (sample x of its lower corners + 1), 0 ..= nx.
+    pub i: u32,
+    /// Padded row, 0 ..= ny.
+    pub j: u32,
+    pub case: u8,
+    pub first_piece: u32,
+}
+
+/// A connected piece of surface within one slice.
+#[derive(Clone, Debug, Default)]
+pub struct Ribbon {
+    /// 4 × Euler characteristic of the ribbon as a surface with boundary.
+    pub chi4: i32,
+    /// 4 × its share of its closed surface's Euler characteristic.
+    pub surface_chi4: i32,
+    pub pieces: u32,
+    /// Segments on the lower / upper plane (its boundary contours there).
+    pub bottom_segments: u32,
+    pub top_segments: u32,
+    /// Bounding box in padded cube indices: [min i, min j], [max i, max j].
+    pub min: [u32; 2],
+    pub max: [u32; 2],
+    /// For a crossing on a vertical (z) edge of this ribbon: is the edge's upper sample inside?
+    /// In the lowest slice of a surface this tells whether the surface encloses material.
+    pub upper_inside: Option<bool>,
+    /// First cube (index into `cubes`) holding one of its pieces.
+    pub first_cube: u32,
+}
+
+/// Surfels of the slice between planes `z` and `z + 1`.
+#[derive(Clone, Debug, Default)]
+pub struct SliceSurfels {
+    /// Lower plane (-1 ..= nz - 1).
+    pub z: i32,
+    pub nx: usize,
+    pub ny: usize,
+    pub cubes: Vec<Cube>,
+    /// `cubes[row_start[j] .. row_start[j + 1]]` are the cubes of row `j`, by increasing `i`.
+    pub row_start: Vec<u32>,
+    /// Ribbon of each piece.
+    pub piece_ribbon: Vec<u32>,
+    pub ribbons: Vec<Ribbon>,
+    /// Cubes whose lower (`-z`) face carries segments, in (j, i) order: the squares of plane `z`
+    /// that the surface crosses. Likewise `top` for plane `z + 1`.
+    pub bottom: Vec<u32>,
+    pub top: Vec<u32>,
+}
+
+#[inline]
+fn bit(row: &[u64], i: usize) -> u8 {
+    ((row[i / 64] >> (i % 64)) & 1) as u8
+}
+
+/// Cube case from the rows of its corners: `a`/`b` rows j, j+1 of the lower plane, `c`/`d` of
+/// the upper plane.
+#[inline]
+pub fn case_at(a: &[u64], b: &[u64], c: &[u64], d: &[u64], i: usize) -> u8 {
+    bit(a, i)
+        | bit(a, i + 1) << 1
+        | bit(b, i) << 2
+        | bit(b, i + 1) << 3
+        | bit(c, i) << 4
+        | bit(c, i + 1) << 5
+        | bit(d, i) << 6
+        | bit(d, i + 1) << 7
+}
+
+/// Calls `f(i)` for every mixed cube of cube row `j` (rows j, j+1 of both planes), in order.
+#[inline]
+pub fn for_mixed_in_row(
+    lower: &PlaneMask,
+    upper: &PlaneMask,
+    j: usize,
+    mut f: impl FnMut(usize, u8),
+) {
+    let (a, b) = (lower.row(j), lower.row(j + 1));
+    let (c, d) = (upper.row(j), upper.row(j + 1));
+    let words = lower.words;
+    let or_at = |w: usize| {
+        if w < words {
+            a[w] | b[w] | c[w] | d[w]
+        } else {
+            0
+        }
+    };
+    let and_at = |w: usize| {
+        if w < words {
+            a[w] & b[w] & c[w] & d[w]
+        } else {
+            0
+        }
+    };
+    let (mut or_w, mut and_w) = (or_at(0), and_at(0));
+    for w in 0..words {
+        let (or_n, and_n) = (or_at(w + 1), and_at(w + 1));
+        // Bit i of the shifted words is column i + 1.
+        let or_s = (or_w >> 1) | (or_n << 63);
+        let and_s = (and_w >> 1) | (and_n << 63);
+        let mut mixed = (or_w | or_s) & !(and_w & and_s);
+        while mixed != 0 {
+            let i = w * 64 + mixed.trailing_zeros() as usize;
+            mixed &= mixed - 1;
+            f(i, case_at(a, b, c, d, i));
+        }
+        or_w = or_n;
+        and_w = and_n;
+    }
+}
+
+impl SliceSurfels {
+    /// Builds the surfels of the slice between `lower` (plane z) and `upper` (plane z+1).
+    pub fn build(lower: &PlaneMask, upper: &PlaneMask, z: i32, conn: Connectivity) -> SliceSurfels {
+        let mut s = SliceSurfels::default();
+        s.rebuild(lower, upper, z, conn, &mut UnionFind::default());
+        s
+    }
+
+    /// As [`SliceSurfels::build`], reusing this value's buffers and a scratch union-find.
+    pub fn rebuild(
+        &mut self,
+        lower: &PlaneMask,
+        upper: &PlaneMask,
+        z: i32,
+        conn: Connectivity,
+        uf: &mut UnionFind,
+    ) {
+        let table = cases(conn);
+        let (nx, ny) = (lower.nx, lower.ny);
+        self.z = z;
+        self.nx = nx;
+        self.ny = ny;
+        self.cubes.clear();
+        self.row_start.clear();
+        self.bottom.clear();
+        self.top.clear();
+        let mut pieces = 0u32;
+        for j in 0..=ny {
+            self.row_start.push(self.cubes.len() as u32);
+            for_mixed_in_row(lower, upper, j, |i, case| {
+                self.cubes.push(Cube {
+                    i: i as u32,
+                    j: j as u32,
+                    case,
+                    first_piece: pieces,
+                });
+                pieces += table[case as usize].pieces.len() as u32;
+            });
+        }
+        self.row_start.push(self.cubes.len() as u32);
+        // Join pieces across the -x and -y faces of each cube.
+        uf.clear(pieces as usize);
+        let mut below_row = 0usize; // walks row j-1 alongside row j
+        for j in 0..=ny {
+            let (r0, r1) = (self.row_start[j] as usize, self.row_start[j + 1] as usize);
+            let (p0, p1) = if j > 0 {
+                (self.row_start[j - 1] as usize, self.row_start[j] as usize)
+            } else {
+                (0, 0)
+            };
+            below_row = below_row.max(p0);
+            for q in r0..r1 {
+                let cube = self.cubes[q];
+                let case = &table[cube.case as usize];
+                if case.face_owner[0][0] != NONE {
+                    let prev = self.cubes[q - 1];
+                    debug_assert!(prev.i + 1 == cube.i && prev.j == cube.j);
+                    join_face(uf, case, &cube, 0, &table[prev.case as usize], &prev, 1);
+                }
+                if case.face_owner[2][0] != NONE {
+                    while below_row < p1 && self.cubes[below_row].i < cube.i {
+                        below_row += 1;
+                    }
+                    let nb = self.cubes[below_row];
+                    debug_assert!(nb.i == cube.i && nb.j + 1 == cube.j);
+                    join_face(uf, case, &cube, 2, &table[nb.case as usize], &nb, 3);
+                }
+                if case.face_owner[4][0] != NONE {
+                    self.bottom.push(q as u32);
+                }
+                if case.face_owner[5][0] != NONE {
+                    self.top.push(q as u32);
+                }
+            }
+        }
+        let (labels, n) = uf.labels();
+        self.piece_ribbon = labels;
+        self.ribbons.clear();
+        self.ribbons.resize(
+            n,
+            Ribbon {
+                min: [u32::MAX; 2],
+                first_cube: u32::MAX,
+                ..Default::default()
+            },
+        );
+        for (q, cube) in self.cubes.iter().enumerate() {
+            let case = &table[cube.case as usize];
+            for (k, piece) in case.pieces.iter().enumerate() {
+                let r =
+                    &mut self.ribbons[self.piece_ribbon[cube.first_piece as usize + k] as usize];
+                r.chi4 += piece.ribbon_chi4 as i32;
+                r.surface_chi4 += piece.chi4 as i32;
+                r.pieces += 1;
+                r.min = [r.min[0].min(cube.i), r.min[1].min(cube.j)];
+                r.max = [r.max[0].max(cube.i), r.max[1].max(cube.j)];
+                if r.first_cube == u32::MAX {
+                    r.first_cube = q as u32;
+                }
+                if r.upper_inside.is_none() {
+                    for lp in &piece.loops {
+                        if let Some(&e) = lp.iter().find(|&&e| EDGE_AXIS[e as usize] == 2) {
+                            let upper = EDGE_CORNERS[e as usize].1;
+                            r.upper_inside = Some((cube.case >> upper) & 1 == 1);
+                            break;
+                        }
+                    }
+                }
+            }
+            for slot in 0..2 {
+                let o = case.face_owner[4][slot];
+                if o != NONE {
+                    self.ribbons
+                        [self.piece_ribbon[(cube.first_piece + o as u32) as usize] as usize]
+                        .bottom_segments += 1;
+                }
+                let o = case.face_owner[5][slot];
+                if o != NONE {
+                    self.ribbons
+                        [self.piece_ribbon[(cube.first_piece + o as u32) as usize] as usize]
+                        .top_segments += 1;
+                }
+            }
+        }
+    }
+
+    pub fn piece_count(&self) -> usize {
+        self.piece_ribbon.len()
+    }
+
+    /// Index into `cubes` of the cube at padded (i, j), if it is mixed.
+    pub fn find_cube(&self, i: u32, j: u32) -> Option<usize> {
+        if j as usize + 1 >= self.row_start.len() {
+            return None;
+        }
+        let (r0, r1) = (
+            self.row_start[j as usize] as usize,
+            self.row_start[j as usize + 1] as usize,
+        );
+        self.cubes[r0..r1]
+            .binary_search_by_key(&i, |c| c.i)
+            .ok()
+            .map(|k| r0 + k)
+    }
+
+    /// Ribbon of the piece owning segment `slot` of face `face` of cube `q`.
+    #[inline]
+    pub fn face_ribbon(&self, table: &[Case; 256], q: usize, face: usize, slot: usize) -> u32 {
+        let cube = self.cubes[q];
+        let o = table[cube.case as usize].face_owner[face][slot];
+        self.piece_ribbon[(cube.first_piece + o as u32) as usize]
+    }
+}
+
+/// Unites the pieces on either side of a shared face: face `fa` of cube `a`, face `fb` of `b`.
+#[inline]
+fn join_face(uf: &mut UnionFind, ca: &Case, a: &Cube, fa: usize, cb: &Case, b: &Cube, fb: usize) {
+    for slot in 0..2 {
+        let (oa, ob) = (ca.face_owner[fa][slot], cb.face_owner[fb][slot]);
+        if oa == NONE {
+            break;
+        }
+        debug_assert!(
+            ob != NONE,
+            "a shared face has the same segments on both sides"
+        );
+        uf.union(a.first_piece + oa as u32, b.first_piece + ob as u32);
+    }
+}

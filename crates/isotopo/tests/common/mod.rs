@@ -1,0 +1,108 @@
+//! Shared by the integration tests: a deterministic random generator, synthetic shapes with
+//! known topology, smoothed-noise volumes, and an independent topology oracle.
+#![allow(dead_code)]
+
+pub mod oracle;
+pub mod shapes;
+
+use isotopo::topology::{genus, Connectivity, GenusReport, Inside, SurfaceOptions};
+use isotopo::volume::InMemoryVolume;
+
+/// splitmix64: small, deterministic, good enough for test data.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn below(&mut self, n: u64) -> u64 {
+        self.next_u64() % n
+    }
+}
+
+/// Random values blurred `passes` times with a 3-tap box filter along each axis: blobs and
+/// tunnels of a few voxels, like noisy scans.
+pub fn smoothed_noise(dims: [usize; 3], passes: usize, rng: &mut Rng) -> Vec<f32> {
+    let [nx, ny, nz] = dims;
+    let idx = |x: usize, y: usize, z: usize| (z * ny + y) * nx + x;
+    let mut v: Vec<f32> = (0..nx * ny * nz).map(|_| rng.f64() as f32).collect();
+    let mut tmp = v.clone();
+    for _ in 0..passes {
+        for axis in 0..3 {
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        let p = [x, y, z];
+                        let n = dims[axis];
+                        let mut s = v[idx(x, y, z)];
+                        let mut c = 1.0;
+                        for d in [-1i64, 1] {
+                            let q = p[axis] as i64 + d;
+                            if q >= 0 && (q as usize) < n {
+                                let mut pp = p;
+                                pp[axis] = q as usize;
+                                s += v[idx(pp[0], pp[1], pp[2])];
+                                c += 1.0;
+                            }
+                        }
+                        tmp[idx(x, y, z)] = s / c;
+                    }
+                }
+            }
+            std::mem::swap(&mut v, &mut tmp);
+        }
+    }
+    v
+}
+
+/// A float32 in-memory volume from values laid out x fastest.
+pub fn volume_from(dims: [usize; 3], v: &[f32]) -> InMemoryVolume {
+    let [nx, ny, _] = dims;
+    InMemoryVolume::from_fn(dims, |x, y, z| v[(z * ny + y) * nx + x])
+}
+
+/// The value of quantile `q` of `v` (an isovalue that puts about `1 - q` of samples inside).
+pub fn quantile(v: &[f32], q: f64) -> f64 {
+    let mut s: Vec<f32> = v.to_vec();
+    s.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let k = ((s.len() - 1) as f64 * q) as usize;
+    // Halfway between neighbours so no sample ties the isovalue.
+    (s[k] as f64 + s[(k + 1).min(s.len() - 1)] as f64) / 2.0
+}
+
+pub fn opts(iso: f64, conn: Connectivity) -> SurfaceOptions {
+    SurfaceOptions {
+        iso,
+        inside: Inside::Above,
+        connectivity: conn,
+    }
+}
+
+pub fn run_genus(vol: &InMemoryVolume, iso: f64, conn: Connectivity) -> GenusReport {
+    let mut v = vol.clone();
+    genus(&mut v, &opts(iso, conn), &isotopo::progress::NoProgress).expect("genus pass")
+}
+
+/// Inside mask of a volume (value > iso).
+pub fn mask_of(vol: &InMemoryVolume, iso: f64) -> Vec<bool> {
+    let [nx, ny, nz] = vol.dims();
+    let mut m = Vec::with_capacity(nx * ny * nz);
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                m.push(vol.get(x, y, z) > iso);
+            }
+        }
+    }
+    m
+}
+
+pub const BOTH: [Connectivity; 2] = [Connectivity::Six, Connectivity::TwentySix];
