@@ -19,7 +19,9 @@ use crate::topology::mask::PlaneMask;
 use crate::topology::slice::SliceSurfels;
 use crate::topology::values::{crossing, SliceValues};
 use crate::topology::SurfaceOptions;
-use crate::volume::{AtomicOutput, Compression, Samples, SliceReader, VolumeInfo};
+use crate::volume::{
+    Affine, AtomicOutput, Compression, DType, Sample, Samples, Scaling, SliceReader, VolumeInfo,
+};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -126,41 +128,76 @@ fn z_edges(lower: &PlaneMask, upper: &PlaneMask) -> EdgeSet {
     z
 }
 
-/// Vertex positions (voxel coordinates) of the crossings of a plane's edges.
-fn plane_vertices(
-    e: &PlaneEdges,
-    values: Option<&Samples>,
-    z: f64,
+/// Read access to one plane's values by padded (column, row); NaN on the padding.
+struct PlaneValues<'a, T> {
+    v: Option<&'a [T]>,
     nx: usize,
     ny: usize,
-    opts: &SurfaceOptions,
-    info: &VolumeInfo,
-) -> Vec<[f64; 3]> {
-    let mut out = Vec::with_capacity((e.x.count + e.y.count) as usize);
-    let val = |i: isize, j: isize| -> f64 {
-        let (x, y) = (i - 1, j - 1);
-        match values {
-            Some(v) if x >= 0 && y >= 0 && (x as usize) < nx && (y as usize) < ny => {
-                info.scaling.apply(v.get_f64(y as usize * nx + x as usize))
+    scaling: Scaling,
+}
+
+impl<T: Sample> PlaneValues<'_, T> {
+    #[inline]
+    fn at(&self, i: usize, j: usize) -> f64 {
+        match self.v {
+            Some(v) if i >= 1 && j >= 1 && i <= self.nx && j <= self.ny => {
+                self.scaling.apply(v[(j - 1) * self.nx + i - 1].to_f64())
             }
             _ => f64::NAN,
         }
-    };
-    let t_of = |a: f64, b: f64| {
-        let mut c = [f64::NAN; 8];
-        c[0] = a;
-        c[1] = b;
-        crossing(&c, 0, opts.iso)
-    };
+    }
+}
+
+/// Where the isosurface crosses between values `a` and `b` (fraction from `a`).
+#[inline]
+fn fraction(a: f64, b: f64, iso: f64) -> f64 {
+    let mut c = [f64::NAN; 8];
+    c[0] = a;
+    c[1] = b;
+    crossing(&c, 0, iso)
+}
+
+/// World positions of the crossings of a plane's x- then y-edges.
+fn plane_vertices<T: Sample>(
+    e: &PlaneEdges,
+    vals: &PlaneValues<T>,
+    z: f64,
+    iso: f64,
+    affine: &Affine,
+) -> Vec<[f32; 3]> {
+    let mut out = Vec::with_capacity((e.x.count + e.y.count) as usize);
     e.x.for_each(|j, i| {
-        let t = t_of(val(i as isize, j as isize), val(i as isize + 1, j as isize));
-        out.push([i as f64 - 1.0 + t, j as f64 - 1.0, z]);
+        let t = fraction(vals.at(i, j), vals.at(i + 1, j), iso);
+        out.push(world(affine, [i as f64 - 1.0 + t, j as f64 - 1.0, z]));
     });
     e.y.for_each(|j, i| {
-        let t = t_of(val(i as isize, j as isize), val(i as isize, j as isize + 1));
-        out.push([i as f64 - 1.0, j as f64 - 1.0 + t, z]);
+        let t = fraction(vals.at(i, j), vals.at(i, j + 1), iso);
+        out.push(world(affine, [i as f64 - 1.0, j as f64 - 1.0 + t, z]));
     });
     out
+}
+
+/// World positions of the crossings of the z-edges between two planes.
+fn z_vertices<T: Sample>(
+    ze: &EdgeSet,
+    lower: &PlaneValues<T>,
+    upper: &PlaneValues<T>,
+    z: f64,
+    iso: f64,
+    affine: &Affine,
+) -> Vec<[f32; 3]> {
+    let mut out = Vec::with_capacity(ze.count as usize);
+    ze.for_each(|j, i| {
+        let t = fraction(lower.at(i, j), upper.at(i, j), iso);
+        out.push(world(affine, [i as f64 - 1.0, j as f64 - 1.0, z + t]));
+    });
+    out
+}
+
+#[inline]
+fn world(affine: &Affine, p: [f64; 3]) -> [f32; 3] {
+    let q = affine.apply(p);
+    [q[0] as f32, q[1] as f32, q[2] as f32]
 }
 
 /// Vertex reference kinds, packed in the top two bits until global numbers are known.
@@ -172,84 +209,120 @@ const KIND: u32 = 3 << 30;
 /// One slice's share of the mesh, with vertex references still local.
 struct SliceMesh {
     surfels: SliceSurfels,
-    z_vertices: Vec<[f64; 3]>,
-    upper_vertices: Vec<[f64; 3]>,
-    upper_count: u32,
+    z_vertices: Vec<[f32; 3]>,
+    upper_vertices: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
     /// Ribbon of each triangle.
     ribbon: Vec<u32>,
+    /// Ribbon areas, when needed (to pick the largest surface).
     areas: Vec<f64>,
 }
 
-#[allow(clippy::too_many_arguments)]
+/// A plane ready for meshing: its mask, crossing edges, and samples (None for padding).
+struct MeshPlane {
+    mask: PlaneMask,
+    edges: PlaneEdges,
+    samples: Option<Samples>,
+}
+
+/// Runs `$body` with `$lo`/`$up` bound to typed [`PlaneValues`] of two planes of one type.
+macro_rules! with_plane_values {
+    ($lower:expr, $upper:expr, $info:expr, $lo:ident, $up:ident => $body:expr) => {{
+        let dtype = $info.dtype;
+        let (nx, ny, scaling) = ($info.dims[0], $info.dims[1], $info.scaling);
+        macro_rules! typed {
+            ($t:ty) => {{
+                let $lo = PlaneValues::<$t> {
+                    v: $lower.and_then(<$t>::view),
+                    nx,
+                    ny,
+                    scaling,
+                };
+                let $up = PlaneValues::<$t> {
+                    v: $upper.and_then(<$t>::view),
+                    nx,
+                    ny,
+                    scaling,
+                };
+                $body
+            }};
+        }
+        match dtype {
+            DType::U8 => typed!(u8),
+            DType::I8 => typed!(i8),
+            DType::U16 => typed!(u16),
+            DType::I16 => typed!(i16),
+            DType::U32 => typed!(u32),
+            DType::I32 => typed!(i32),
+            DType::F32 => typed!(f32),
+            DType::F64 => typed!(f64),
+        }
+    }};
+}
+
 fn slice_mesh(
-    lower: &PlaneMask,
-    upper: &PlaneMask,
-    lower_edges: &PlaneEdges,
-    upper_edges: &PlaneEdges,
-    lower_v: Option<&Samples>,
-    upper_v: Option<&Samples>,
+    lower: &MeshPlane,
+    upper: &MeshPlane,
     z: i32,
     opts: &SurfaceOptions,
     info: &VolumeInfo,
+    want_areas: bool,
 ) -> SliceMesh {
-    let (nx, ny) = (lower.nx, lower.ny);
+    let (nx, ny) = (lower.mask.nx, lower.mask.ny);
     let conn = opts.connectivity;
     let table = cases(conn);
-    let surfels = SliceSurfels::build(lower, upper, z, conn);
-    let ze = z_edges(lower, upper);
-    let sv = SliceValues {
-        lower: lower_v,
-        upper: upper_v,
-        nx,
-        ny,
-        scaling: info.scaling,
-    };
-    let mut z_vertices = Vec::with_capacity(ze.count as usize);
-    ze.for_each(|j, i| {
-        let mut c = [f64::NAN; 8];
-        let v = sv.corners(i as u32, j as u32);
-        c[0] = v[0];
-        c[4] = v[4];
-        let t = crossing(&c, 8, opts.iso);
-        z_vertices.push([i as f64 - 1.0, j as f64 - 1.0, z as f64 + t]);
-    });
-    let upper_vertices = plane_vertices(upper_edges, upper_v, z as f64 + 1.0, nx, ny, opts, info);
+    let surfels = SliceSurfels::build(&lower.mask, &upper.mask, z, conn);
+    let ze = z_edges(&lower.mask, &upper.mask);
+    let (z_vertices, upper_vertices) = with_plane_values!(lower.samples.as_ref(), upper.samples.as_ref(), info, lo, up => (
+        z_vertices(&ze, &lo, &up, z as f64, opts.iso, &info.affine),
+        plane_vertices(&upper.edges, &up, z as f64 + 1.0, opts.iso, &info.affine),
+    ));
     let mut triangles = Vec::new();
     let mut ribbon = Vec::new();
-    let (lx, ux) = (lower_edges.x.count, upper_edges.x.count);
+    let (le, ue) = (&lower.edges, &upper.edges);
+    let (lx, ux) = (le.x.count, ue.x.count);
     for cube in &surfels.cubes {
         let (i, j) = (cube.i as usize, cube.j as usize);
         let case = &table[cube.case as usize];
         let vid = |e: u8| -> u32 {
             match e {
-                0 => LOWER | lower_edges.x.rank(j, i),
-                1 => LOWER | lower_edges.x.rank(j + 1, i),
-                2 => UPPER | upper_edges.x.rank(j, i),
-                3 => UPPER | upper_edges.x.rank(j + 1, i),
-                4 => LOWER | (lx + lower_edges.y.rank(j, i)),
-                5 => LOWER | (lx + lower_edges.y.rank(j, i + 1)),
-                6 => UPPER | (ux + upper_edges.y.rank(j, i)),
-                7 => UPPER | (ux + upper_edges.y.rank(j, i + 1)),
+                0 => LOWER | le.x.rank(j, i),
+                1 => LOWER | le.x.rank(j + 1, i),
+                2 => UPPER | ue.x.rank(j, i),
+                3 => UPPER | ue.x.rank(j + 1, i),
+                4 => LOWER | (lx + le.y.rank(j, i)),
+                5 => LOWER | (lx + le.y.rank(j, i + 1)),
+                6 => UPPER | (ux + ue.y.rank(j, i)),
+                7 => UPPER | (ux + ue.y.rank(j, i + 1)),
                 8 => ZEDGE | ze.rank(j, i),
                 9 => ZEDGE | ze.rank(j, i + 1),
                 10 => ZEDGE | ze.rank(j + 1, i),
                 _ => ZEDGE | ze.rank(j + 1, i + 1),
             }
         };
-        for (k, piece) in case.pieces.iter().enumerate() {
-            let r = surfels.piece_ribbon[cube.first_piece as usize + k];
-            for t in &piece.triangles {
-                triangles.push([vid(t[0]), vid(t[1]), vid(t[2])]);
-                ribbon.push(r);
-            }
+        for n in 0..case.n_triangles as usize {
+            let t = case.triangles[n];
+            triangles.push([vid(t[0]), vid(t[1]), vid(t[2])]);
+            ribbon.push(
+                surfels.piece_ribbon[cube.first_piece as usize + case.triangle_piece[n] as usize],
+            );
         }
     }
-    let areas = crate::topology::genus::ribbon_areas(&surfels, &sv, opts.iso, &info.affine, conn);
+    let areas = if want_areas {
+        let sv = SliceValues {
+            lower: lower.samples.as_ref(),
+            upper: upper.samples.as_ref(),
+            nx,
+            ny,
+            scaling: info.scaling,
+        };
+        crate::topology::genus::ribbon_areas(&surfels, &sv, opts.iso, &info.affine, conn)
+    } else {
+        vec![0.0; surfels.ribbons.len()]
+    };
     SliceMesh {
         surfels,
         z_vertices,
-        upper_count: upper_vertices.len() as u32,
         upper_vertices,
         triangles,
         ribbon,
@@ -269,27 +342,32 @@ pub fn extract(
     let info = reader.info().clone();
     let [nx, ny, nz] = info.dims;
     let classifier = opts.classifier(&info);
-    let affine = info.affine;
-    let flip = affine.determinant() < 0.0;
+    let flip = info.affine.determinant() < 0.0;
     let mut mesh = Mesh::default();
     let mut tri_ribbon: Vec<u32> = Vec::new();
     let mut tracker = SurfaceTracker::default();
-    let to_world = |p: [f64; 3]| {
-        let w = affine.apply(p);
-        [w[0] as f32, w[1] as f32, w[2] as f32]
-    };
     progress.start("mesh", nz as u64 + 1);
-    let mut lower_plane = PlaneMask::empty(nx, ny);
-    let mut lower_edges = plane_edges(&lower_plane);
-    let mut lower_values: Option<Samples> = None;
+    let make_plane = |samples: Option<Samples>| {
+        let mut mask = PlaneMask::empty(nx, ny);
+        if let Some(s) = &samples {
+            mask.fill(s, &classifier);
+        }
+        let edges = plane_edges(&mask);
+        MeshPlane {
+            mask,
+            edges,
+            samples,
+        }
+    };
+    let mut lower = make_plane(None);
     let mut lower_base = 0u32; // first vertex of the lower plane's x/y crossings
     let mut prev: Option<(SliceSurfels, u32)> = None;
     let mut z0: i32 = -1;
     while z0 < nz as i32 {
         let z1 = (z0 + BATCH as i32).min(nz as i32);
-        let mut values = Vec::new();
+        let mut samples = Vec::new();
         for p in z0 + 1..=z1 {
-            values.push(if p < nz as i32 {
+            samples.push(if p < nz as i32 {
                 let mut s = Samples::new(info.dtype);
                 reader.read_slice(&mut s)?;
                 Some(s)
@@ -297,54 +375,32 @@ pub fn extract(
                 None
             });
         }
-        let planes: Vec<(PlaneMask, PlaneEdges)> = values
-            .par_iter()
-            .map(|v| {
-                let mut p = PlaneMask::empty(nx, ny);
-                if let Some(v) = v {
-                    p.fill(v, &classifier);
-                }
-                let e = plane_edges(&p);
-                (p, e)
-            })
-            .collect();
+        let planes: Vec<MeshPlane> = samples.into_par_iter().map(make_plane).collect();
         let built: Vec<SliceMesh> = (0..planes.len())
             .into_par_iter()
             .map(|k| {
-                let (lo, lo_e, lo_v) = if k == 0 {
-                    (&lower_plane, &lower_edges, lower_values.as_ref())
-                } else {
-                    (&planes[k - 1].0, &planes[k - 1].1, values[k - 1].as_ref())
-                };
-                slice_mesh(
-                    lo,
-                    &planes[k].0,
-                    lo_e,
-                    &planes[k].1,
-                    lo_v,
-                    values[k].as_ref(),
-                    z0 + k as i32,
-                    opts,
-                    &info,
-                )
+                let lo = if k == 0 { &lower } else { &planes[k - 1] };
+                slice_mesh(lo, &planes[k], z0 + k as i32, opts, &info, largest)
             })
             .collect();
         for sm in built {
             // Global numbers: the lower plane's block exists; the z-edges come next, then the
             // upper plane's block.
             let z_base = mesh.vertices.len() as u32;
-            mesh.vertices
-                .extend(sm.z_vertices.iter().map(|&p| to_world(p)));
+            mesh.vertices.extend_from_slice(&sm.z_vertices);
             let upper_base = mesh.vertices.len() as u32;
-            mesh.vertices
-                .extend(sm.upper_vertices.iter().map(|&p| to_world(p)));
-            let _ = sm.upper_count;
-            let base = tracker.add_slice(
-                &sm.surfels,
-                &sm.areas,
-                prev.as_ref().map(|(p, b)| (p, *b)),
-                opts.connectivity,
-            )?;
+            mesh.vertices.extend_from_slice(&sm.upper_vertices);
+            // Surfaces (to pick the largest) are only tracked when asked for.
+            let base = if largest {
+                tracker.add_slice(
+                    &sm.surfels,
+                    &sm.areas,
+                    prev.as_ref().map(|(p, b)| (p, *b)),
+                    opts.connectivity,
+                )?
+            } else {
+                0
+            };
             let map = |v: u32| -> u32 {
                 let local = v & !KIND;
                 match v & KIND {
@@ -353,22 +409,22 @@ pub fn extract(
                     _ => z_base + local,
                 }
             };
-            for (t, &r) in sm.triangles.iter().zip(&sm.ribbon) {
+            mesh.triangles.reserve(sm.triangles.len());
+            for t in &sm.triangles {
                 let mut tri = [map(t[0]), map(t[1]), map(t[2])];
                 if flip {
                     tri.swap(1, 2);
                 }
                 mesh.triangles.push(tri);
-                tri_ribbon.push(base + r);
+            }
+            if largest {
+                tri_ribbon.extend(sm.ribbon.iter().map(|&r| base + r));
             }
             lower_base = upper_base;
             prev = Some((sm.surfels, base));
             progress.advance(1);
         }
-        let (lp, le) = planes.into_iter().last().expect("a batch has a plane");
-        lower_plane = lp;
-        lower_edges = le;
-        lower_values = values.pop().flatten();
+        lower = planes.into_iter().last().expect("a batch has a plane");
         z0 = z1;
     }
     progress.finish();
@@ -417,6 +473,11 @@ fn keep_largest(mesh: &mut Mesh, tri_ribbon: &[u32], tracker: &mut SurfaceTracke
 }
 
 impl Mesh {
+    /// Euler characteristic of a closed mesh, where every edge joins two triangles: V - 3F/2 + F.
+    pub fn closed_euler_characteristic(&self) -> i64 {
+        self.vertices.len() as i64 - self.triangles.len() as i64 / 2
+    }
+
     /// Euler characteristic V - E + F (edges counted from the triangles).
     pub fn euler_characteristic(&self) -> i64 {
         let mut edges: Vec<(u32, u32)> = self

@@ -238,3 +238,56 @@ fn largest_keeps_one_surface() {
     assert!(big.triangles.len() < all.triangles.len());
     assert_eq!(check_mesh(&all).unwrap().components.len(), 2);
 }
+
+/// The genus pass's surface areas are the areas of the extracted mesh, and a ball's area is close
+/// to 4πr², in millimetres (anisotropic voxels).
+#[test]
+fn areas_match_the_mesh_and_the_sphere() {
+    let r = 9.0;
+    let spacing = [0.5, 0.8, 1.25];
+    let dims = [46, 29, 19];
+    let mut vol = InMemoryVolume::from_fn(dims, |x, y, z| {
+        let p = [
+            x as f64 * spacing[0] - 11.3,
+            y as f64 * spacing[1] - 11.1,
+            z as f64 * spacing[2] - 11.2,
+        ];
+        (r - (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()) as f32
+    });
+    vol.info.affine = isotopo::volume::Affine::from_spacing(spacing, [0.0; 3]);
+    let g = common::run_genus(&vol, 0.0, Connectivity::Six);
+    assert_eq!(g.surfaces.len(), 1);
+    let mut v = vol.clone();
+    let m = extract(
+        &mut v,
+        &common::opts(0.0, Connectivity::Six),
+        false,
+        &NoProgress,
+    )
+    .unwrap();
+    let mesh_area: f64 = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| m.vertices[i as usize].map(|c| c as f64));
+            let u = [p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]];
+            let w = [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]];
+            let c = [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ];
+            0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+        })
+        .sum();
+    let area = g.surfaces[0].area;
+    assert!(
+        (area - mesh_area).abs() < 1e-4 * area,
+        "genus pass area {area}, mesh area {mesh_area}"
+    );
+    let sphere = 4.0 * std::f64::consts::PI * r * r;
+    assert!(
+        (area - sphere).abs() < 0.03 * sphere,
+        "area {area} vs 4πr² = {sphere}"
+    );
+}

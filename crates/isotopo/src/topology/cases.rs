@@ -209,10 +209,25 @@ pub struct Piece {
     pub z_face_segments: u8,
 }
 
+/// Most triangles any case has (checked when the table is derived).
+pub const MAX_TRIANGLES: usize = 6;
+
 /// A cube case under one connectivity.
 #[derive(Clone, Debug, Default)]
 pub struct Case {
     pub pieces: Vec<Piece>,
+    // Compact copies of what the per-cube loops read, so the hot table fits in cache:
+    /// Number of pieces.
+    pub n_pieces: u8,
+    /// All triangles of all pieces, with the piece of each.
+    pub n_triangles: u8,
+    pub triangles: [[u8; 3]; MAX_TRIANGLES],
+    pub triangle_piece: [u8; MAX_TRIANGLES],
+    /// Per piece: `Piece::chi4` and `Piece::ribbon_chi4`.
+    pub chi4: [i8; 4],
+    pub ribbon_chi4: [i8; 4],
+    /// Per piece: the upper corner of the first z-edge its boundary crosses, or [`NONE`].
+    pub z_upper: [u8; 4],
     /// For each face and segment slot (canonical order): the owning piece, or [`NONE`].
     pub face_owner: [[u8; 2]; 6],
     /// For each face and slot: the segment's end points as cube edges, in the owning piece's
@@ -276,6 +291,7 @@ fn derive_case(case: u8, conn: Connectivity) -> Case {
     let mut out = Case {
         face_owner: [[NONE; 2]; 6],
         edge_owner: [NONE; 12],
+        z_upper: [NONE; 4],
         ..Default::default()
     };
     // Segments of every face with their owning group and orientation.
@@ -394,8 +410,27 @@ fn derive_case(case: u8, conn: Connectivity) -> Case {
         for &e in &points {
             out.edge_owner[e as usize] = piece_index;
         }
+        let k = piece_index as usize;
+        out.chi4[k] = piece.chi4;
+        out.ribbon_chi4[k] = piece.ribbon_chi4;
+        out.z_upper[k] = points
+            .iter()
+            .find(|&&e| EDGE_AXIS[e as usize] == 2)
+            .map(|&e| EDGE_CORNERS[e as usize].1)
+            .unwrap_or(NONE);
+        for t in &piece.triangles {
+            let n = out.n_triangles as usize;
+            assert!(
+                n < MAX_TRIANGLES,
+                "case {case:#010b} has more than {MAX_TRIANGLES} triangles"
+            );
+            out.triangles[n] = *t;
+            out.triangle_piece[n] = piece_index;
+            out.n_triangles += 1;
+        }
         out.pieces.push(piece);
     }
+    out.n_pieces = out.pieces.len() as u8;
     out
 }
 

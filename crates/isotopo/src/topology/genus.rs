@@ -14,7 +14,7 @@ use super::values::{edge_point, SliceValues};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::unionfind::UnionFind;
-use crate::volume::{Affine, Samples, SliceReader, VolumeInfo};
+use crate::volume::{Affine, DType, Sample, Samples, SliceReader, VolumeInfo};
 use rayon::prelude::*;
 
 /// What defines the isosurface: the isovalue, which side is inside, and the digital connectivity.
@@ -315,36 +315,103 @@ pub(crate) fn ribbon_areas(
     affine: &Affine,
     conn: Connectivity,
 ) -> Vec<f64> {
+    let Some(dtype) = values.lower.or(values.upper).map(|v| v.dtype()) else {
+        return vec![0.0; s.ribbons.len()];
+    };
+    macro_rules! typed {
+        ($t:ty) => {
+            areas_typed::<$t>(
+                s,
+                values.lower.and_then(<$t>::view),
+                values.upper.and_then(<$t>::view),
+                values,
+                iso,
+                affine,
+                conn,
+            )
+        };
+    }
+    match dtype {
+        DType::U8 => typed!(u8),
+        DType::I8 => typed!(i8),
+        DType::U16 => typed!(u16),
+        DType::I16 => typed!(i16),
+        DType::U32 => typed!(u32),
+        DType::I32 => typed!(i32),
+        DType::F32 => typed!(f32),
+        DType::F64 => typed!(f64),
+    }
+}
+
+/// Cofactor matrix of the affine's linear part: maps a voxel-space cross product (twice a
+/// triangle's vector area) to the world-space one.
+fn cofactor(a: &Affine) -> [[f64; 3]; 3] {
+    let m = &a.m;
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    [
+        [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
+        [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],
+        [c(0, 1, 1, 2), -c(0, 1, 0, 2), c(0, 1, 0, 1)],
+    ]
+}
+
+fn areas_typed<T: Sample>(
+    s: &SliceSurfels,
+    lower: Option<&[T]>,
+    upper: Option<&[T]>,
+    values: &SliceValues,
+    iso: f64,
+    affine: &Affine,
+    conn: Connectivity,
+) -> Vec<f64> {
     let table = cases(conn);
+    let cof = cofactor(affine);
+    let (nx, ny) = (values.nx, values.ny);
+    let scaling = values.scaling;
+    let identity = scaling.is_identity();
     let mut areas = vec![0.0; s.ribbons.len()];
     for cube in &s.cubes {
         let case = &table[cube.case as usize];
-        let v = values.corners(cube.i, cube.j);
+        // Corner values; NaN for padding.
+        let mut v = [f64::NAN; 8];
+        for c in 0..8usize {
+            let x = cube.i as isize - 1 + (c & 1) as isize;
+            let y = cube.j as isize - 1 + ((c >> 1) & 1) as isize;
+            if x < 0 || y < 0 || x >= nx as isize || y >= ny as isize {
+                continue;
+            }
+            if let Some(p) = if c & 4 == 0 { lower } else { upper } {
+                let raw = p[y as usize * nx + x as usize].to_f64();
+                v[c] = if identity { raw } else { scaling.apply(raw) };
+            }
+        }
         let mut pts = [[0.0f64; 3]; 12];
         let mut have = 0u16;
-        for (k, piece) in case.pieces.iter().enumerate() {
-            let mut a = 0.0;
-            for t in &piece.triangles {
-                let mut p = [[0.0; 3]; 3];
-                for (m, &e) in t.iter().enumerate() {
-                    if have & (1 << e) == 0 {
-                        pts[e as usize] = edge_point(&v, e, iso);
-                        have |= 1 << e;
-                    }
-                    p[m] = pts[e as usize];
+        for n in 0..case.n_triangles as usize {
+            let t = case.triangles[n];
+            for e in t {
+                if have & (1 << e) == 0 {
+                    pts[e as usize] = edge_point(&v, e, iso);
+                    have |= 1 << e;
                 }
-                let u =
-                    affine.apply_vector([p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]]);
-                let w =
-                    affine.apply_vector([p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]]);
-                let c = [
-                    u[1] * w[2] - u[2] * w[1],
-                    u[2] * w[0] - u[0] * w[2],
-                    u[0] * w[1] - u[1] * w[0],
-                ];
-                a += 0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
             }
-            areas[s.piece_ribbon[(cube.first_piece + k as u32) as usize] as usize] += a;
+            let (p0, p1, p2) = (pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize]);
+            let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+            let w = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
+            let c = [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ];
+            let d = [
+                cof[0][0] * c[0] + cof[0][1] * c[1] + cof[0][2] * c[2],
+                cof[1][0] * c[0] + cof[1][1] * c[1] + cof[1][2] * c[2],
+                cof[2][0] * c[0] + cof[2][1] * c[1] + cof[2][2] * c[2],
+            ];
+            let a = 0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            areas[s.piece_ribbon[(cube.first_piece + case.triangle_piece[n] as u32) as usize]
+                as usize] += a;
         }
     }
     areas

@@ -9,7 +9,7 @@
 //!
 //! Pieces are numbered per slice: cube `q` owns pieces `first_piece .. first_piece + n`.
 
-use super::cases::{cases, Case, Connectivity, EDGE_AXIS, EDGE_CORNERS, NONE};
+use super::cases::{cases, Case, Connectivity, NONE};
 use super::mask::PlaneMask;
 use crate::unionfind::UnionFind;
 
@@ -161,7 +161,7 @@ impl SliceSurfels {
                     case,
                     first_piece: pieces,
                 });
-                pieces += table[case as usize].pieces.len() as u32;
+                pieces += table[case as usize].n_pieces as u32;
             });
         }
         self.row_start.push(self.cubes.len() as u32);
@@ -213,25 +213,19 @@ impl SliceSurfels {
         );
         for (q, cube) in self.cubes.iter().enumerate() {
             let case = &table[cube.case as usize];
-            for (k, piece) in case.pieces.iter().enumerate() {
+            for k in 0..case.n_pieces as usize {
                 let r =
                     &mut self.ribbons[self.piece_ribbon[cube.first_piece as usize + k] as usize];
-                r.chi4 += piece.ribbon_chi4 as i32;
-                r.surface_chi4 += piece.chi4 as i32;
+                r.chi4 += case.ribbon_chi4[k] as i32;
+                r.surface_chi4 += case.chi4[k] as i32;
                 r.pieces += 1;
                 r.min = [r.min[0].min(cube.i), r.min[1].min(cube.j)];
                 r.max = [r.max[0].max(cube.i), r.max[1].max(cube.j)];
                 if r.first_cube == u32::MAX {
                     r.first_cube = q as u32;
                 }
-                if r.upper_inside.is_none() {
-                    for lp in &piece.loops {
-                        if let Some(&e) = lp.iter().find(|&&e| EDGE_AXIS[e as usize] == 2) {
-                            let upper = EDGE_CORNERS[e as usize].1;
-                            r.upper_inside = Some((cube.case >> upper) & 1 == 1);
-                            break;
-                        }
-                    }
+                if r.upper_inside.is_none() && case.z_upper[k] != NONE {
+                    r.upper_inside = Some((cube.case >> case.z_upper[k]) & 1 == 1);
                 }
             }
             for slot in 0..2 {

@@ -147,10 +147,63 @@ pub trait Sample: Copy + Send + Sync + PartialOrd + 'static {
     fn to_f64(self) -> f64;
     /// Converts an `f64` that is known to be representable (used for written wall values).
     fn from_f64(v: f64) -> Self;
+    /// The typed samples inside a [`Samples`] of this type.
+    fn view(s: &Samples) -> Option<&[Self]>;
+    /// The test `v > iso` as a comparison in this type (exact: no sample is misclassified).
+    fn above(iso: f64) -> Threshold<Self>;
+    /// The test `v < iso` as a comparison in this type.
+    fn below(iso: f64) -> Threshold<Self>;
+}
+
+/// A comparison against the isovalue, done in the samples' own type so that it vectorizes.
+#[derive(Clone, Copy, Debug)]
+pub enum Threshold<T> {
+    /// Every sample passes (the isovalue is below the type's range).
+    All,
+    /// No sample passes.
+    Nothing,
+    /// `v > t`.
+    Greater(T),
+    /// `v < t`.
+    Less(T),
+}
+
+impl<T: Sample> Threshold<T> {
+    #[inline]
+    pub fn test(&self, v: T) -> bool {
+        match *self {
+            Threshold::All => true,
+            Threshold::Nothing => false,
+            Threshold::Greater(t) => v > t,
+            Threshold::Less(t) => v < t,
+        }
+    }
 }
 
 macro_rules! impl_sample {
-    ($t:ty, $d:expr) => {
+    ($t:ty, $d:expr, $variant:ident, int) => {
+        impl_sample!(@common $t, $d, $variant);
+        impl_sample!(@int $t);
+    };
+    ($t:ty, $d:expr, $variant:ident, float) => {
+        impl_sample!(@common $t, $d, $variant);
+        impl_sample!(@float $t);
+    };
+    (@int $t:ty) => {
+        impl IntThreshold for $t {
+            // For an integer v: v > iso exactly when v > floor(iso); v < iso when v < ceil(iso).
+            fn above_int(iso: f64) -> Threshold<$t> {
+                let f = iso.floor();
+                if f < <$t>::MIN as f64 { Threshold::All } else if f >= <$t>::MAX as f64 { Threshold::Nothing } else { Threshold::Greater(f as $t) }
+            }
+            fn below_int(iso: f64) -> Threshold<$t> {
+                let c = iso.ceil();
+                if c > <$t>::MAX as f64 { Threshold::All } else if c <= <$t>::MIN as f64 { Threshold::Nothing } else { Threshold::Less(c as $t) }
+            }
+        }
+    };
+    (@float $t:ty) => {};
+    (@common $t:ty, $d:expr, $variant:ident) => {
         impl Sample for $t {
             const DTYPE: DType = $d;
             #[inline]
@@ -177,17 +230,87 @@ macro_rules! impl_sample {
             fn from_f64(v: f64) -> Self {
                 v as $t
             }
+            fn view(s: &Samples) -> Option<&[Self]> {
+                match s {
+                    Samples::$variant(v) => Some(v),
+                    _ => None,
+                }
+            }
+            fn above(iso: f64) -> Threshold<Self> {
+                threshold_above::<$t>(iso)
+            }
+            fn below(iso: f64) -> Threshold<Self> {
+                threshold_below::<$t>(iso)
+            }
         }
     };
 }
-impl_sample!(u8, DType::U8);
-impl_sample!(i8, DType::I8);
-impl_sample!(u16, DType::U16);
-impl_sample!(i16, DType::I16);
-impl_sample!(u32, DType::U32);
-impl_sample!(i32, DType::I32);
-impl_sample!(f32, DType::F32);
-impl_sample!(f64, DType::F64);
+
+/// Exact integer thresholds.
+trait IntThreshold: Sized {
+    fn above_int(iso: f64) -> Threshold<Self>;
+    fn below_int(iso: f64) -> Threshold<Self>;
+}
+
+/// Dispatches to the integer or float rule.
+trait ThresholdRule: Sized {
+    fn rule_above(iso: f64) -> Threshold<Self>;
+    fn rule_below(iso: f64) -> Threshold<Self>;
+}
+
+impl<T: IntThreshold> ThresholdRule for T {
+    fn rule_above(iso: f64) -> Threshold<T> {
+        T::above_int(iso)
+    }
+    fn rule_below(iso: f64) -> Threshold<T> {
+        T::below_int(iso)
+    }
+}
+
+// For floats the threshold is the isovalue rounded toward the passing side: v > iso for an f32 v
+// exactly when v > (the largest f32 not above iso).
+impl ThresholdRule for f32 {
+    fn rule_above(iso: f64) -> Threshold<f32> {
+        let mut t = iso as f32;
+        if t as f64 > iso {
+            t = t.next_down();
+        }
+        Threshold::Greater(t)
+    }
+    fn rule_below(iso: f64) -> Threshold<f32> {
+        let mut t = iso as f32;
+        if (t as f64) < iso {
+            t = t.next_up();
+        }
+        Threshold::Less(t)
+    }
+}
+
+impl ThresholdRule for f64 {
+    fn rule_above(iso: f64) -> Threshold<f64> {
+        Threshold::Greater(iso)
+    }
+    fn rule_below(iso: f64) -> Threshold<f64> {
+        Threshold::Less(iso)
+    }
+}
+
+fn threshold_above<T: ThresholdRule>(iso: f64) -> Threshold<T> {
+    T::rule_above(iso)
+}
+
+fn threshold_below<T: ThresholdRule>(iso: f64) -> Threshold<T> {
+    T::rule_below(iso)
+}
+
+impl_sample!(u8, DType::U8, U8, int);
+impl_sample!(i8, DType::I8, I8, int);
+impl_sample!(u16, DType::U16, U16, int);
+impl_sample!(i16, DType::I16, I16, int);
+impl_sample!(u32, DType::U32, U32, int);
+impl_sample!(i32, DType::I32, I32, int);
+impl_sample!(f32, DType::F32, F32, float);
+impl_sample!(f64, DType::F64, F64, float);
 
 fn decode_into<T: Sample>(bytes: &[u8], endian: Endian, out: &mut Vec<T>) {
     out.clear();

@@ -30,7 +30,7 @@ pub mod stats;
 mod stream;
 mod tiff;
 
-pub use dtype::{DType, Endian, Sample, Samples};
+pub use dtype::{DType, Endian, Sample, Samples, Threshold};
 pub use geometry::Affine;
 pub use memory::InMemoryVolume;
 pub use stream::{check_output_path, AtomicOutput};
