@@ -4,6 +4,7 @@
 mod progress;
 
 use clap::{Args, Parser, Subcommand};
+use isotopo::sweep::Axis;
 use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
 use isotopo::volume::{self, DType, Endian, ReadOptions};
 use isotopo::{Error, Result};
@@ -28,6 +29,44 @@ enum Command {
     Genus(GenusArgs),
     /// Extract the isosurface as a mesh (.ply binary, .obj or .stl), in world millimetres.
     Mesh(MeshArgs),
+    /// Locate every handle with a sweep (Reeb graph of contours and ribbons).
+    Handles(HandlesArgs),
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum AxisArg {
+    X,
+    Y,
+    Z,
+}
+
+impl AxisArg {
+    fn axis(self) -> Axis {
+        match self {
+            AxisArg::X => Axis::X,
+            AxisArg::Y => Axis::Y,
+            AxisArg::Z => Axis::Z,
+        }
+    }
+}
+
+#[derive(Args)]
+struct HandlesArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    /// Sweep direction.
+    #[arg(long, value_enum, default_value = "z")]
+    axis: AxisArg,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+    /// List every handle, not only the first 30.
+    #[arg(long)]
+    all: bool,
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 /// Which isosurface: the isovalue, the inside side and the digital connectivity.
@@ -217,6 +256,7 @@ fn main() -> ExitCode {
         Command::Convert(a) => cmd_convert(a),
         Command::Genus(a) => cmd_genus(a),
         Command::Mesh(a) => cmd_mesh(a),
+        Command::Handles(a) => cmd_handles(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -508,5 +548,97 @@ fn cmd_mesh(a: MeshArgs) -> Result<()> {
             writing
         );
     }
+    Ok(())
+}
+
+fn cmd_handles(a: HandlesArgs) -> Result<()> {
+    let opts = a.surface.options()?;
+    let axis = a.axis.axis();
+    let mut reader = a.input.open()?;
+    let info = reader.info().clone();
+    let bars = progress::Bars::new(a.quiet || a.json);
+    let t = Instant::now();
+    let masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
+    let report = isotopo::sweep::find_handles(&masks, axis, opts.connectivity, &bars)?;
+    let secs = t.elapsed().as_secs_f64();
+    let handles = isotopo::report::handles_json(&report, &info);
+    if a.json {
+        let v = serde_json::json!({
+            "file": info.path,
+            "dims": info.dims,
+            "iso": opts.iso,
+            "inside": inside_name(opts.inside),
+            "connectivity": opts.connectivity.number(),
+            "axis": axis.name(),
+            "genus": report.genus,
+            "handles": handles,
+            "surfaces": report.surfaces,
+            "seconds": secs,
+        });
+        println!("{}", to_json(&v)?);
+        return Ok(());
+    }
+    let reeb = report
+        .handles
+        .iter()
+        .filter(|h| h.located.kind == isotopo::sweep::HandleKind::ReebCycle)
+        .count();
+    println!(
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}",
+        info.path.display(),
+        num(opts.iso),
+        inside_name(opts.inside),
+        opts.connectivity.number(),
+        axis.name()
+    );
+    println!(
+        "handles     {} located ({} Reeb cycles, {} intra-ribbon); genus from the Euler characteristic: {}{}",
+        report.handles.len(),
+        reeb,
+        report.handles.len() - reeb,
+        report.genus,
+        if report.handles.len() as i64 == report.genus { " (all found)" } else { " (MISMATCH)" }
+    );
+    let shown = if a.all {
+        report.handles.len()
+    } else {
+        report.handles.len().min(30)
+    };
+    if shown > 0 {
+        println!(
+            "  {:>5} {:>7}  {:<12} {:>9}  bbox (voxels)                 bbox (mm)",
+            "id", "surface", "kind", "slices"
+        );
+    }
+    for h in handles.iter().take(shown) {
+        let b = &h["bbox"];
+        let m = &h["bbox_mm"];
+        println!(
+            "  {:>5} {:>7}  {:<12} {:>9}  [{}..{}, {}..{}, {}..{}]  [{:.1}..{:.1}, {:.1}..{:.1}, {:.1}..{:.1}]",
+            h["id"],
+            h["surface"],
+            h["kind"].as_str().unwrap_or(""),
+            format!("{}..{}", h["slices"][0], h["slices"][1]),
+            b["min"][0],
+            b["max"][0],
+            b["min"][1],
+            b["max"][1],
+            b["min"][2],
+            b["max"][2],
+            m[0][0].as_f64().unwrap_or(0.0),
+            m[1][0].as_f64().unwrap_or(0.0),
+            m[0][1].as_f64().unwrap_or(0.0),
+            m[1][1].as_f64().unwrap_or(0.0),
+            m[0][2].as_f64().unwrap_or(0.0),
+            m[1][2].as_f64().unwrap_or(0.0)
+        );
+    }
+    if shown < report.handles.len() {
+        println!(
+            "  … {} more (--all lists them, --json gives the cycles)",
+            report.handles.len() - shown
+        );
+    }
+    println!("time        {:.2} s", secs);
     Ok(())
 }

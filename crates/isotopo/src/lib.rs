@@ -23,8 +23,12 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod error;
+pub mod loops;
 pub mod mesh;
 pub mod progress;
+pub mod report;
+pub mod surface;
+pub mod sweep;
 pub mod topology;
 pub mod unionfind;
 pub mod volume;

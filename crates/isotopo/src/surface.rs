@@ -1,0 +1,336 @@
+//! The isosurface as a graph, read straight from the inside mask: vertices are the crossing
+//! points on grid edges, edges are the segments on cube faces, and the pieces (surfels) are its
+//! faces. Loops are closed paths in this graph; their length in edges is the paper's unit
+//! ("voxel edges": a loop around a one-voxel bridge has length 4).
+//!
+//! Around a crossing point on a grid edge lie four cubes, each holding one piece through it, and
+//! four faces, each holding one segment from it:
+//!
+//! ```text
+//!            n1                  the pieces' boundary loops (counter-clockwise seen from
+//!       P1   |   P0              outside the solid) chain the neighbours into one cycle
+//!     n2 --- v --- n0            around v: P runs n0 -> v -> n1 … The order n0, n1, n2, n3 is
+//!       P2   |   P3              clockwise seen from outside; piece[k] lies between nbr[k]
+//!            n3                  and nbr[k+1].
+//! ```
+//!
+//! A tube piece (the tunnel inside one cube) is an annulus: no path along segments crosses it.
+//! So its triangulation's diagonals, which join its two boundary loops, are edges of the graph
+//! too; a vertex on a tube has one or two more neighbours, inside the tube's sector.
+
+use crate::sweep::MaskVolume;
+use crate::topology::cases::{Case, EDGE_CORNERS};
+
+/// A crossing point: the grid edge from `p` to `p + e[axis]` (volume-local coordinates; -1 and
+/// `n` are the padding).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Vertex {
+    pub p: [i64; 3],
+    pub axis: u8,
+}
+
+impl Vertex {
+    /// Midpoint of the edge, in volume-local voxel coordinates.
+    pub fn midpoint(&self) -> [f64; 3] {
+        let mut m = [self.p[0] as f64, self.p[1] as f64, self.p[2] as f64];
+        m[self.axis as usize] += 0.5;
+        m
+    }
+
+    /// Far end of the edge.
+    pub fn end(&self) -> [i64; 3] {
+        let mut q = self.p;
+        q[self.axis as usize] += 1;
+        q
+    }
+}
+
+/// A piece: the cube with lower corner `cube`, and the piece's index in that cube's case. A
+/// tube's triangles are told apart by `part` (1 + the triangle's index; 0 for any other piece),
+/// so that they are the faces of the graph between the tube's diagonals.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PieceRef {
+    pub cube: [i64; 3],
+    pub index: u8,
+    pub part: u8,
+}
+
+/// Most neighbours a vertex can have: four segments, plus diagonals through tubes.
+pub const MAX_DEGREE: usize = 12;
+
+/// The neighbourhood of a crossing point.
+#[derive(Clone, Copy, Debug)]
+pub struct Around {
+    /// Number of neighbours (4, or more on a tube).
+    pub n: usize,
+    /// The neighbours, clockwise seen from outside.
+    pub nbr: [Vertex; MAX_DEGREE],
+    /// `piece[k]` lies between `nbr[k]` and `nbr[(k + 1) % n]`.
+    pub piece: [PieceRef; MAX_DEGREE],
+    /// Whether the edge to `nbr[k]` is a diagonal through a tube rather than a segment on a face.
+    pub diagonal: [bool; MAX_DEGREE],
+}
+
+impl Around {
+    pub fn neighbours(&self) -> &[Vertex] {
+        &self.nbr[..self.n]
+    }
+
+    /// The pieces on either side of the edge to `nbr[k]`.
+    #[inline]
+    pub fn sides(&self, k: usize) -> (PieceRef, PieceRef) {
+        (self.piece[(k + self.n - 1) % self.n], self.piece[k])
+    }
+
+    pub fn position(&self, w: Vertex) -> Option<usize> {
+        self.nbr[..self.n].iter().position(|&x| x == w)
+    }
+}
+
+/// Case of the cube with lower corner `q`.
+#[inline]
+pub fn cube_case(vol: &MaskVolume, q: [i64; 3]) -> u8 {
+    let mut c = 0u8;
+    for b in 0..8u8 {
+        let (dx, dy, dz) = ((b & 1) as i64, ((b >> 1) & 1) as i64, ((b >> 2) & 1) as i64);
+        if vol.get(q[0] + dx, q[1] + dy, q[2] + dz) {
+            c |= 1 << b;
+        }
+    }
+    c
+}
+
+/// The cube edge (local index) along `axis` at local offsets (`ob`, `oc`) on the two other axes,
+/// taken in increasing axis order.
+#[inline]
+fn local_edge(axis: u8, o_lo: i64, o_hi: i64) -> u8 {
+    // x-edges 0..4 at (y, z); y-edges 4..8 at (x, z); z-edges 8..12 at (x, y).
+    4 * axis + (o_lo + 2 * o_hi) as u8
+}
+
+/// Global vertex of local edge `e` of the cube with lower corner `q`.
+#[inline]
+pub fn vertex_of(q: [i64; 3], e: u8) -> Vertex {
+    let (a, _) = EDGE_CORNERS[e as usize];
+    Vertex {
+        p: [
+            q[0] + (a & 1) as i64,
+            q[1] + ((a >> 1) & 1) as i64,
+            q[2] + ((a >> 2) & 1) as i64,
+        ],
+        axis: e / 4,
+    }
+}
+
+/// Is there a crossing on this edge?
+#[inline]
+pub fn is_crossing(vol: &MaskVolume, v: Vertex) -> bool {
+    let q = v.end();
+    vol.get(v.p[0], v.p[1], v.p[2]) != vol.get(q[0], q[1], q[2])
+}
+
+/// The neighbourhood of `v`, or `None` if the surface does not cross that edge.
+pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around> {
+    if !is_crossing(vol, v) {
+        return None;
+    }
+    let a = v.axis as usize;
+    let (lo, hi) = match a {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    // The four cubes around the edge: one (prev, next, piece) link each; a tube gives one link
+    // per triangle through v instead, so the chain passes through its diagonals.
+    let mut links: [(Vertex, Vertex, PieceRef, bool); MAX_DEGREE] = [(
+        v,
+        v,
+        PieceRef {
+            cube: [0; 3],
+            index: 0,
+            part: 0,
+        },
+        false,
+    ); MAX_DEGREE];
+    let mut n = 0;
+    for (dl, dh) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)] {
+        let mut q = v.p;
+        q[lo] -= dl;
+        q[hi] -= dh;
+        let case = &table[cube_case(vol, q) as usize];
+        let e = local_edge(v.axis, dl, dh);
+        let pi = case.edge_owner[e as usize];
+        let piece = &case.pieces[pi as usize];
+        let pr = PieceRef {
+            cube: q,
+            index: pi,
+            part: 0,
+        };
+        if piece.loops.len() == 1 {
+            let lp = &piece.loops[0];
+            let len = lp.len();
+            let at = lp.iter().position(|&x| x == e)?;
+            links[n] = (
+                vertex_of(q, lp[(at + len - 1) % len]),
+                vertex_of(q, lp[(at + 1) % len]),
+                pr,
+                false,
+            );
+            n += 1;
+        } else {
+            // Triangle (e, x, y), counter-clockwise: it arrives at e from y and leaves to x.
+            let other = |x: u8| !piece.loops.iter().any(|l| l.contains(&e) && l.contains(&x));
+            for (ti, t) in piece.triangles.iter().enumerate() {
+                let Some(m) = t.iter().position(|&x| x == e) else {
+                    continue;
+                };
+                let (x, y) = (t[(m + 1) % 3], t[(m + 2) % 3]);
+                let part = PieceRef {
+                    part: 1 + ti as u8,
+                    ..pr
+                };
+                links[n] = (vertex_of(q, y), vertex_of(q, x), part, other(x));
+                n += 1;
+            }
+        }
+    }
+    // Chain: `chain[k]` runs nbr[k-1] -> v -> nbr[k], so it lies between those two.
+    let mut out = Around {
+        n,
+        nbr: [v; MAX_DEGREE],
+        piece: [links[0].2; MAX_DEGREE],
+        diagonal: [false; MAX_DEGREE],
+    };
+    let mut chain = [links[0].2; MAX_DEGREE];
+    let mut cur = links[0];
+    for k in 0..n {
+        chain[k] = cur.2;
+        out.nbr[k] = cur.1;
+        out.diagonal[k] = cur.3;
+        if k + 1 < n {
+            cur = *links[..n].iter().find(|l| l.0 == cur.1)?;
+        }
+    }
+    for k in 0..n {
+        out.piece[k] = chain[(k + 1) % n];
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sweep::{Frame, MaskVolume};
+    use crate::topology::cases::{cases, Connectivity};
+
+    /// One inside sample: the surface around it is an octahedron-like sphere; every crossing has
+    /// four distinct neighbours and four distinct pieces.
+    /// The piece between two consecutive neighbours has both on its boundary.
+    #[test]
+    fn pieces_lie_between_their_neighbours() {
+        let mut vol = MaskVolume::new([4, 4, 4], Frame::identity());
+        for (x, y, z) in [(1, 1, 1), (2, 1, 1), (1, 2, 1), (1, 1, 2), (2, 2, 2)] {
+            vol.set(x, y, z, true);
+        }
+        let t = cases(Connectivity::Six);
+        for z in -1..4 {
+            for y in -1..4 {
+                for x in -1..4 {
+                    for axis in 0..3 {
+                        let v = Vertex { p: [x, y, z], axis };
+                        let Some(a) = around(&vol, t, v) else {
+                            continue;
+                        };
+                        for k in 0..a.n {
+                            let p = a.piece[k];
+                            let case = &t[cube_case(&vol, p.cube) as usize];
+                            let verts: Vec<Vertex> = case.pieces[p.index as usize]
+                                .loops
+                                .iter()
+                                .flatten()
+                                .map(|&e| vertex_of(p.cube, e))
+                                .collect();
+                            assert!(
+                                verts.contains(&v)
+                                    && verts.contains(&a.nbr[k])
+                                    && verts.contains(&a.nbr[(k + 1) % a.n]),
+                                "{v:?} piece {k}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn around_a_single_sample() {
+        let mut vol = MaskVolume::new([3, 3, 3], Frame::identity());
+        vol.set(1, 1, 1, true);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let t = cases(conn);
+            let v = Vertex {
+                p: [0, 1, 1],
+                axis: 0,
+            };
+            let a = around(&vol, t, v).expect("crossing");
+            assert_eq!(a.n, 4);
+            let mut n = a.neighbours().to_vec();
+            n.sort();
+            n.dedup();
+            assert_eq!(n.len(), 4);
+            // Each neighbour's neighbourhood contains v back.
+            for &w in a.neighbours() {
+                let b = around(&vol, t, w).unwrap();
+                assert!(b.position(v).is_some());
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tube_tests {
+    use super::*;
+    use crate::sweep::{Frame, MaskVolume};
+    use crate::topology::cases::{cases, Connectivity};
+
+    /// Six samples around two body-diagonal outside corners: under 6 the cube between them holds
+    /// a tube; its vertices get diagonals to the other end, and adjacency stays symmetric.
+    #[test]
+    fn tubes_have_diagonals_and_adjacency_is_symmetric() {
+        let mut vol = MaskVolume::new([2, 2, 2], Frame::identity());
+        for b in 1..7u8 {
+            vol.set(
+                (b & 1) as usize,
+                ((b >> 1) & 1) as usize,
+                ((b >> 2) & 1) as usize,
+                true,
+            );
+        }
+        let t = cases(Connectivity::Six);
+        let mut diagonals = 0;
+        for z in -1..2 {
+            for y in -1..2 {
+                for x in -1..2 {
+                    for axis in 0..3 {
+                        let v = Vertex { p: [x, y, z], axis };
+                        let Some(a) = around(&vol, t, v) else {
+                            continue;
+                        };
+                        diagonals += a.diagonal[..a.n].iter().filter(|&&d| d).count();
+                        for &w in a.neighbours() {
+                            assert!(
+                                around(&vol, t, w).unwrap().position(v).is_some(),
+                                "{v:?} -> {w:?} not symmetric"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(
+            diagonals, 12,
+            "a tube strip has 6 diagonals, seen from both ends"
+        );
+    }
+}

@@ -1,0 +1,611 @@
+//! The sweep (paper §2.1): a Reeb graph of the isosurface built slice by slice, whose cycles,
+//! together with the handles inside single slices, account for the whole genus.
+//!
+//! For each slice the surfels are grouped into ribbons and the contours of its upper plane are
+//! labelled. Ribbons and contours become nodes of the Reeb graph; a ribbon is joined to each
+//! contour on its boundary. When a ribbon meets a contour already connected to it through the
+//! graph, a cycle closes: that is a handle, described by the shortest such cycle (breadth-first
+//! search). A ribbon that is of positive genus once its contours are capped hides handles
+//! within its slice; those are found by sweeping a capped mini-volume of the slice along an
+//! orthogonal axis ([`mini`]). Genus of a surface = its Reeb cycles + the genus of its capped
+//! ribbons, so every handle is found.
+//!
+//! Small handles often stay inside one slice of the mini-volume too (their loops run through the
+//! caps; the tunnel inside a single cube stays inside a slice along every axis). The mini-volume
+//! ribbons that hold them are small, and their handles are found directly ([`local`]).
+//!
+//! Every handle carries a *cut*: a closed curve on the surface that its Reeb loop must cross
+//! once — the shortest contour of its cycle, or for a handle found directly, the loop crossing
+//! its non-separating loop.
+
+pub mod contours;
+pub mod local;
+pub mod mini;
+pub mod planes;
+pub mod reeb;
+
+pub use planes::{Axis, Frame, MaskVolume};
+pub use reeb::{Node, NodeKind, ReebGraph};
+
+use crate::error::{Error, Result};
+use crate::loops::search::{Graph, PieceSet};
+use crate::progress::Progress;
+use crate::surface::{vertex_of, Vertex};
+use crate::topology::cases::{cases, Case, Connectivity};
+use crate::topology::genus::BBox;
+use crate::topology::slice::SliceSurfels;
+use crate::unionfind::UnionFind;
+use std::sync::Arc;
+
+/// How a handle was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HandleKind {
+    /// A cycle of the Reeb graph.
+    ReebCycle,
+    /// Inside one slice, found in the capped mini-volume of that slice.
+    IntraRibbon,
+}
+
+/// The volume a handle's cycle and cut live in.
+#[derive(Clone, Debug)]
+pub enum CycleVolume {
+    /// The swept volume itself.
+    Top,
+    /// A mini-volume (rotated, cropped, capped). Only cubes in the handle's `allowed` box show
+    /// the original surface.
+    Mini(Arc<MaskVolume>),
+}
+
+/// A handle located by the sweep.
+#[derive(Clone, Debug)]
+pub struct LocatedHandle {
+    pub kind: HandleKind,
+    /// For intra-ribbon handles: found by the mini-volume's sweep (a cycle), or directly.
+    pub direct: bool,
+    /// The cycle (alternating ribbon and contour nodes) in the coordinates of `volume`; for a
+    /// handle found directly, the one ribbon of the mini-volume that holds it.
+    pub cycle: Vec<Node>,
+    pub volume: CycleVolume,
+    /// The closed curve its Reeb loop crosses once (vertices in order, in `volume`'s
+    /// coordinates).
+    pub cut: Vec<Vertex>,
+    /// For intra-ribbon handles: the cubes (lower corners, in `volume`'s local coordinates,
+    /// inclusive) that show the original surface; loops must stay there.
+    pub allowed: Option<([i64; 3], [i64; 3])>,
+    /// A node of the top-level Reeb graph on the handle's surface.
+    pub(crate) top_node: u32,
+    /// Cube bounds of the cycle's ribbons, original coordinates (lower corners, inclusive).
+    pub bbox: BBox,
+}
+
+/// Which surface a piece lies on: the piece in the cube with lower corner (u, v) of slice `w`
+/// that owns corner `corner`.
+#[derive(Clone, Copy, Debug)]
+struct Probe {
+    u: i64,
+    v: i64,
+    w: i64,
+    corner: u8,
+}
+
+/// A ribbon of positive genus found by a sweep that does not recurse (the mini-volume's).
+struct Unresolved {
+    slice: i64,
+    ribbon: u32,
+    genus: usize,
+    node: u32,
+}
+
+/// One sweep's result over one volume.
+struct SweepLevel {
+    handles: Vec<LocatedHandle>,
+    unresolved: Vec<Unresolved>,
+    graph: ReebGraph,
+    /// (ribbon node, 4 × its share of its surface's Euler characteristic)
+    ribbon_chi4: Vec<(u32, i64)>,
+    /// (ribbon node, lowest cube in original coordinates and corner): numbers surfaces.
+    ribbon_key: Vec<(u32, [i64; 4])>,
+    probe_node: Option<u32>,
+}
+
+/// Maps a corner bit of this volume's frame to the original frame.
+fn corner_to_original(bit: u8, frame: &Frame) -> u8 {
+    let local = [bit & 1, (bit >> 1) & 1, (bit >> 2) & 1];
+    let mut o = [0u8; 3];
+    for k in 0..3 {
+        o[frame.uvw[k]] = local[k];
+    }
+    o[0] | (o[1] << 1) | (o[2] << 2)
+}
+
+/// Original-coordinate box of the cubes (padded indices) `min ..= max` of slice `w`.
+fn cube_box(frame: &Frame, min: [u32; 2], max: [u32; 2], w: i64) -> BBox {
+    let mut b = BBox::EMPTY;
+    for p in [
+        [min[0] as i64 - 1, min[1] as i64 - 1, w],
+        [max[0] as i64 - 1, max[1] as i64 - 1, w],
+    ] {
+        b.include(frame.to_original_i(p));
+    }
+    b
+}
+
+/// A vertex of the contour made of segment `slot` of the `k`-th square of `list` (a slice's
+/// `top` list): the segment's first end.
+fn contour_vertex(
+    s: &SliceSurfels,
+    list: &[u32],
+    k: usize,
+    slot: usize,
+    face: usize,
+    table: &[Case; 256],
+) -> Vertex {
+    let cube = s.cubes[list[k] as usize];
+    let (e, _) = table[cube.case as usize].face_segment[face][slot];
+    vertex_of([cube.i as i64 - 1, cube.j as i64 - 1, s.z as i64], e)
+}
+
+/// The contour through `start` (a crossing on an edge lying in plane `w`), as its vertices in
+/// order: walk along the neighbours that stay in the plane.
+fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
+    let in_plane = |x: &Vertex| x.axis != 2 && x.p[2] == w;
+    let mut out = vec![start];
+    let mut prev = start;
+    let mut cur = start;
+    loop {
+        let a = g.around(cur)?;
+        // Along segments in the plane (never a diagonal through a tube).
+        let next = (0..a.n)
+            .filter(|&k| !a.diagonal[k])
+            .map(|k| a.nbr[k])
+            .find(|x| in_plane(x) && *x != prev)?;
+        if next == start {
+            return Some(out);
+        }
+        if out.len() > 1 << 24 {
+            return None;
+        }
+        out.push(next);
+        prev = cur;
+        cur = next;
+    }
+}
+
+/// Sweeps one volume. At depth 0 ribbons of positive genus are resolved in mini-volumes; at
+/// depth 1 (a mini-volume) they are returned as unresolved.
+fn sweep_level(
+    vol: &MaskVolume,
+    conn: Connectivity,
+    depth: u32,
+    probe: Option<Probe>,
+    progress: &dyn Progress,
+) -> Result<SweepLevel> {
+    let table = cases(conn);
+    let nw = vol.dims[2] as i64;
+    let mut graph = ReebGraph::default();
+    let mut out = SweepLevel {
+        handles: Vec::new(),
+        unresolved: Vec::new(),
+        graph: ReebGraph::default(),
+        ribbon_chi4: Vec::new(),
+        ribbon_key: Vec::new(),
+        probe_node: None,
+    };
+    let mut uf = UnionFind::default();
+    let mut surface = Graph::new(vol, table);
+    // Contours of the previous slice's upper plane (= this slice's lower plane) and their nodes.
+    let mut prev_contours = contours::PlaneContours::default();
+    let mut prev_contour_node: Vec<u32> = Vec::new();
+    // Per node: the cube box of a ribbon, or a vertex and the length of a contour.
+    let mut ribbon_boxes: Vec<BBox> = Vec::new();
+    let mut contour_at: Vec<(Vertex, u32)> = Vec::new();
+    if depth == 0 {
+        progress.start("sweep", nw as u64 + 1);
+    }
+    for s in -1..nw {
+        let cur = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+        let ribbon_node: Vec<u32> = (0..cur.ribbons.len())
+            .map(|r| {
+                let id = graph.add_node(NodeKind::Ribbon, s as i32, r as u32);
+                let rb = &cur.ribbons[r];
+                ribbon_boxes.resize(id as usize + 1, BBox::EMPTY);
+                contour_at.resize(id as usize + 1, (Vertex { p: [0; 3], axis: 0 }, 0));
+                ribbon_boxes[id as usize] = cube_box(&vol.frame, rb.min, rb.max, s);
+                out.ribbon_chi4.push((id, rb.surface_chi4 as i64));
+                id
+            })
+            .collect();
+        // Lowest cube (original coordinates) of each ribbon, for numbering surfaces.
+        let mut keys = vec![[i64::MAX; 4]; cur.ribbons.len()];
+        for cube in &cur.cubes {
+            let case = &table[cube.case as usize];
+            let o = vol
+                .frame
+                .to_original_i([cube.i as i64 - 1, cube.j as i64 - 1, s]);
+            for k in 0..case.n_pieces as usize {
+                let r = cur.piece_ribbon[cube.first_piece as usize + k] as usize;
+                let corner = (0..8u8)
+                    .filter(|&b| case.pieces[k].corners & (1 << b) != 0)
+                    .map(|b| corner_to_original(b, &vol.frame))
+                    .min()
+                    .unwrap_or(0);
+                keys[r] = keys[r].min([o[2], o[1], o[0], corner as i64]);
+            }
+        }
+        for (r, k) in keys.into_iter().enumerate() {
+            out.ribbon_key.push((ribbon_node[r], k));
+        }
+        if let Some(p) = probe.filter(|p| p.w == s) {
+            let q = cur
+                .find_cube((p.u + 1) as u32, (p.v + 1) as u32)
+                .ok_or_else(|| Error::Internal("probe cube is not on the surface".into()))?;
+            let cube = cur.cubes[q];
+            let k = table[cube.case as usize]
+                .pieces
+                .iter()
+                .position(|pc| pc.corners & (1 << p.corner) != 0)
+                .ok_or_else(|| Error::Internal("probe corner owns no piece".into()))?;
+            out.probe_node =
+                Some(ribbon_node[cur.piece_ribbon[cube.first_piece as usize + k] as usize]);
+        }
+        // Bottom contours of each ribbon (plane s), distinct.
+        let mut bottom_of: Vec<Vec<u32>> = vec![Vec::new(); cur.ribbons.len()];
+        if cur.bottom.len() * 2 != prev_contours.of_segment.len() {
+            return Err(Error::Internal(format!(
+                "plane {s}: {} squares below, {} above",
+                prev_contours.of_segment.len() / 2,
+                cur.bottom.len()
+            )));
+        }
+        for (k, &q) in cur.bottom.iter().enumerate() {
+            for slot in 0..2 {
+                let c = prev_contours.of_segment[2 * k + slot];
+                if c == u32::MAX {
+                    continue;
+                }
+                let r = cur.face_ribbon(table, q as usize, 4, slot) as usize;
+                let node = prev_contour_node[c as usize];
+                if !bottom_of[r].contains(&node) {
+                    bottom_of[r].push(node);
+                }
+            }
+        }
+        // Cycles: a ribbon meeting a contour already connected to it closes one.
+        for (r, bottom) in bottom_of.iter().enumerate() {
+            let rn = ribbon_node[r];
+            for &c in bottom {
+                if graph.connected(c, rn) {
+                    let path = graph
+                        .shortest_path(rn, c)
+                        .ok_or_else(|| Error::Internal("connected nodes without a path".into()))?;
+                    let mut bbox = BBox::EMPTY;
+                    let mut shortest: Option<(Vertex, u32, i32)> = None;
+                    for &n in &path {
+                        let node = graph.nodes[n as usize];
+                        match node.kind {
+                            NodeKind::Ribbon => bbox.union(&ribbon_boxes[n as usize]),
+                            NodeKind::Contour => {
+                                let (v, len) = contour_at[n as usize];
+                                if shortest.is_none_or(|x| len < x.1) {
+                                    shortest = Some((v, len, node.level));
+                                }
+                            }
+                        }
+                    }
+                    let (v, _, level) = shortest
+                        .ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
+                    let cut = walk_contour(&mut surface, v, level as i64)
+                        .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
+                    out.handles.push(LocatedHandle {
+                        kind: HandleKind::ReebCycle,
+                        direct: false,
+                        cycle: path.iter().map(|&n| graph.nodes[n as usize]).collect(),
+                        volume: CycleVolume::Top,
+                        cut,
+                        allowed: None,
+                        top_node: rn,
+                        bbox,
+                    });
+                }
+                graph.add_edge(c, rn);
+            }
+        }
+        // Contours of the upper plane, each joined to the ribbon below it.
+        let top = contours::label(&cur, 5, table, &mut uf);
+        let contour_node: Vec<u32> = (0..top.count())
+            .map(|c| {
+                let id = graph.add_node(NodeKind::Contour, s as i32 + 1, c as u32);
+                ribbon_boxes.resize(id as usize + 1, BBox::EMPTY);
+                contour_at.resize(id as usize + 1, (Vertex { p: [0; 3], axis: 0 }, 0));
+                id
+            })
+            .collect();
+        let mut top_count = vec![0u32; cur.ribbons.len()];
+        let mut joined = vec![false; top.count()];
+        for (k, &q) in cur.top.iter().enumerate() {
+            for slot in 0..2 {
+                let c = top.of_segment[2 * k + slot];
+                if c == u32::MAX || joined[c as usize] {
+                    continue;
+                }
+                joined[c as usize] = true;
+                let r = cur.face_ribbon(table, q as usize, 5, slot) as usize;
+                let node = contour_node[c as usize];
+                graph.add_edge(node, ribbon_node[r]);
+                // The segment's first end lies in plane s + 1 (face 5 of the cube).
+                let mut v = contour_vertex(&cur, &cur.top, k, slot, 5, table);
+                v.p[2] = s + 1;
+                contour_at[node as usize] = (v, top.length[c as usize]);
+                top_count[r] += 1;
+            }
+        }
+        // Handles inside ribbons: genus of the ribbon with its contours capped.
+        for r in 0..cur.ribbons.len() {
+            let b = bottom_of[r].len() as i64 + top_count[r] as i64;
+            let twice_genus4 = 8 - cur.ribbons[r].chi4 as i64 - 4 * b;
+            if twice_genus4 % 8 != 0 || twice_genus4 < 0 {
+                return Err(Error::Internal(format!("slice {s} ribbon {r}: capped Euler characteristic is not that of a closed surface")));
+            }
+            let g = (twice_genus4 / 8) as usize;
+            if g == 0 {
+                continue;
+            }
+            if depth == 0 {
+                for mut h in intra_ribbon(vol, &cur, r, s, conn, g)? {
+                    h.top_node = ribbon_node[r];
+                    out.handles.push(h);
+                }
+            } else {
+                out.unresolved.push(Unresolved {
+                    slice: s,
+                    ribbon: r as u32,
+                    genus: g,
+                    node: ribbon_node[r],
+                });
+            }
+        }
+        prev_contours = top;
+        prev_contour_node = contour_node;
+        if depth == 0 {
+            progress.advance(1);
+            progress.message(&format!("{} handles", out.handles.len()));
+        }
+    }
+    if depth == 0 {
+        progress.finish();
+    }
+    out.graph = graph;
+    Ok(out)
+}
+
+/// The `g` handles of ribbon `r` of slice `s`, from its capped mini-volume: the cycles of an
+/// orthogonal sweep, and those still inside one of that sweep's slices found directly.
+fn intra_ribbon(
+    vol: &MaskVolume,
+    cur: &SliceSurfels,
+    r: usize,
+    s: i64,
+    conn: Connectivity,
+    g: usize,
+) -> Result<Vec<LocatedHandle>> {
+    let table = cases(conn);
+    let rb = &cur.ribbons[r];
+    // Cube i spans samples i-1 and i (padded indices).
+    let u = (rb.min[0] as i64 - 1, rb.max[0] as i64);
+    let v = (rb.min[1] as i64 - 1, rb.max[1] as i64);
+    let mini = mini::build(vol, s, u, v, conn);
+    // Probe: a piece of this ribbon, in mini coordinates (u', v', w') = (v, w, u).
+    let cube = cur.cubes[rb.first_cube as usize];
+    let case = &table[cube.case as usize];
+    let k = (0..case.n_pieces as usize)
+        .find(|&k| cur.piece_ribbon[cube.first_piece as usize + k] as usize == r)
+        .ok_or_else(|| Error::Internal("ribbon's first cube has no piece of it".into()))?;
+    let corner = case.pieces[k].corners.trailing_zeros() as u8;
+    let local = [
+        cube.i as i64 - 1 - mini.origin[0],
+        cube.j as i64 - 1 - mini.origin[1],
+        s - mini.origin[2],
+    ];
+    let c = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+    let probe = Probe {
+        u: local[1],
+        v: local[2],
+        w: local[0],
+        corner: c[1] | (c[2] << 1) | (c[0] << 2),
+    };
+    let level = sweep_level(
+        &mini.volume,
+        conn,
+        1,
+        Some(probe),
+        &crate::progress::NoProgress,
+    )?;
+    let target = level
+        .probe_node
+        .ok_or_else(|| Error::Internal("probe not found in the mini-volume".into()))?;
+    let root = level.graph.uf.find(target);
+    let on_target = |n: u32| level.graph.uf.find(n) == root;
+    // The original slice in mini coordinates: cubes whose lower corner has v' = the slice's
+    // plane (below caps come first) and u', w' inside the crop.
+    let [nu, _, nw] = mini.volume.dims;
+    let allowed = (
+        [0, mini.below as i64, 0],
+        [nu as i64 - 2, mini.below as i64, nw as i64 - 2],
+    );
+    let shared = Arc::new(mini.volume);
+    let mut found: Vec<LocatedHandle> = Vec::new();
+    for mut h in level.handles.into_iter().filter(|h| on_target(h.top_node)) {
+        h.kind = HandleKind::IntraRibbon;
+        h.volume = CycleVolume::Mini(shared.clone());
+        h.allowed = Some(allowed);
+        h.bbox = clip(&h.bbox, &shared, allowed);
+        found.push(h);
+    }
+    let mut graph = Graph::new(&shared, table);
+    for un in level.unresolved.iter().filter(|x| on_target(x.node)) {
+        // The ribbon's pieces and crossing points, from its slice's surfels.
+        let sl = SliceSurfels::build(
+            shared.plane(un.slice),
+            shared.plane(un.slice + 1),
+            un.slice as i32,
+            conn,
+        );
+        let mut verts = Vec::new();
+        let mut region = PieceSet::default();
+        for cube in &sl.cubes {
+            let case = &table[cube.case as usize];
+            let q = [cube.i as i64 - 1, cube.j as i64 - 1, un.slice];
+            for k in 0..case.n_pieces as usize {
+                if sl.piece_ribbon[cube.first_piece as usize + k] != un.ribbon {
+                    continue;
+                }
+                region.insert(q, k as u8);
+                for lp in &case.pieces[k].loops {
+                    verts.extend(lp.iter().map(|&e| vertex_of(q, e)));
+                }
+            }
+        }
+        verts.sort();
+        verts.dedup();
+        let pairs = local::handles(&mut graph, &verts, &region, un.genus).ok_or_else(|| {
+            Error::Internal(format!(
+                "slice {s}: no handle loops found directly in a mini-volume ribbon of genus {}",
+                un.genus
+            ))
+        })?;
+        for (_, l2) in pairs {
+            let mut bbox = BBox::EMPTY;
+            for x in &l2 {
+                bbox.include(shared.frame.to_original_i(x.p));
+            }
+            found.push(LocatedHandle {
+                kind: HandleKind::IntraRibbon,
+                direct: true,
+                cycle: vec![Node {
+                    kind: NodeKind::Ribbon,
+                    level: un.slice as i32,
+                    local: un.ribbon,
+                }],
+                volume: CycleVolume::Mini(shared.clone()),
+                cut: l2,
+                allowed: Some(allowed),
+                top_node: 0,
+                bbox: clip(&bbox, &shared, allowed),
+            });
+        }
+    }
+    if found.len() != g {
+        return Err(Error::Internal(format!(
+            "slice {s}: a ribbon of genus {g} gave {} handles in its mini-volume",
+            found.len()
+        )));
+    }
+    Ok(found)
+}
+
+/// Clips an original-coordinate box to the original-geometry part of a mini-volume.
+fn clip(b: &BBox, mini: &MaskVolume, allowed: ([i64; 3], [i64; 3])) -> BBox {
+    let lo = mini.frame.to_original_i(allowed.0);
+    let hi = mini.frame.to_original_i(allowed.1);
+    let mut out = BBox::EMPTY;
+    let (mn, mx): (Vec<i64>, Vec<i64>) =
+        (0..3).map(|k| (lo[k].min(hi[k]), lo[k].max(hi[k]))).unzip();
+    out.include([0, 1, 2].map(|k| b.min[k].clamp(mn[k], mx[k])));
+    out.include([0, 1, 2].map(|k| b.max[k].clamp(mn[k], mx[k])));
+    out
+}
+
+/// One closed surface as the sweep sees it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SweepSurface {
+    /// Same numbering as the genus pass: by lowest point (z, y, x).
+    pub id: usize,
+    /// Genus from the Euler characteristic of its surfels.
+    pub genus: i64,
+    /// Handles the sweep located on it.
+    pub handles: usize,
+}
+
+/// A located handle with its surface resolved.
+#[derive(Clone, Debug)]
+pub struct Handle {
+    pub id: usize,
+    pub surface: usize,
+    pub located: LocatedHandle,
+}
+
+/// Every handle of a volume's isosurface.
+pub struct HandleReport {
+    pub axis: Axis,
+    pub handles: Vec<Handle>,
+    pub surfaces: Vec<SweepSurface>,
+    /// Total genus from the Euler characteristic.
+    pub genus: i64,
+}
+
+/// Sweeps `vol` (already arranged for `axis`) and locates every handle.
+pub fn find_handles(
+    vol: &MaskVolume,
+    axis: Axis,
+    conn: Connectivity,
+    progress: &dyn Progress,
+) -> Result<HandleReport> {
+    let level = sweep_level(vol, conn, 0, None, progress)?;
+    let uf = &level.graph.uf;
+    // Surfaces: components holding ribbons, numbered by their lowest cube.
+    let mut key_of_root: std::collections::HashMap<u32, [i64; 4]> = Default::default();
+    for &(n, k) in &level.ribbon_key {
+        let e = key_of_root.entry(uf.find(n)).or_insert([i64::MAX; 4]);
+        *e = (*e).min(k);
+    }
+    let mut roots: Vec<(u32, [i64; 4])> = key_of_root.into_iter().collect();
+    roots.sort_by_key(|&(_, k)| k);
+    let id_of: std::collections::HashMap<u32, usize> = roots
+        .iter()
+        .enumerate()
+        .map(|(i, &(r, _))| (r, i))
+        .collect();
+    let mut chi4 = vec![0i64; roots.len()];
+    for &(n, c) in &level.ribbon_chi4 {
+        chi4[id_of[&uf.find(n)]] += c;
+    }
+    let mut surfaces: Vec<SweepSurface> = chi4
+        .iter()
+        .enumerate()
+        .map(|(id, &c)| SweepSurface {
+            id,
+            genus: (2 - c / 4) / 2,
+            handles: 0,
+        })
+        .collect();
+    let mut handles: Vec<Handle> = level
+        .handles
+        .into_iter()
+        .map(|h| Handle {
+            id: 0,
+            surface: id_of[&uf.find(h.top_node)],
+            located: h,
+        })
+        .collect();
+    // Number handles by surface, then position.
+    handles.sort_by_key(|h| {
+        (
+            h.surface,
+            h.located.bbox.min[2],
+            h.located.bbox.min[1],
+            h.located.bbox.min[0],
+        )
+    });
+    for (i, h) in handles.iter_mut().enumerate() {
+        h.id = i;
+        surfaces[h.surface].handles += 1;
+    }
+    let genus = surfaces.iter().map(|s| s.genus).sum();
+    Ok(HandleReport {
+        axis,
+        handles,
+        surfaces,
+        genus,
+    })
+}

@@ -1,0 +1,203 @@
+//! The Reeb graph of the sweep: contour and ribbon nodes, union-find labels with rollback (so the
+//! sweep can step back after a closure edits the volume), and breadth-first shortest paths.
+//!
+//! ```text
+//!   plane s+1   (c3)     (c4)        contours are nodes, ribbons are nodes; an edge joins a
+//!                 \       /          ribbon to each contour on its boundary. A cycle closes
+//!   slice s       [ r2 ]  /          when a ribbon meets two contours already connected
+//!                 /  \   /           below it: that cycle is a handle.
+//!   plane s     (c1) (c2)
+//! ```
+
+/// What a node stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodeKind {
+    /// A contour in plane `level`.
+    Contour,
+    /// A ribbon in the slice between planes `level` and `level + 1`.
+    Ribbon,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Node {
+    pub kind: NodeKind,
+    pub level: i32,
+    /// Index among the contours of its plane, or the ribbons of its slice.
+    pub local: u32,
+}
+
+/// Union-find without path compression, so unions can be undone in reverse order.
+#[derive(Clone, Debug, Default)]
+pub struct RollbackUnionFind {
+    parent: Vec<u32>,
+    size: Vec<u32>,
+    /// (child root that was attached, previous size of its new root)
+    log: Vec<(u32, u32)>,
+}
+
+impl RollbackUnionFind {
+    pub fn push(&mut self) -> u32 {
+        let i = self.parent.len() as u32;
+        self.parent.push(i);
+        self.size.push(1);
+        i
+    }
+
+    #[inline]
+    pub fn find(&self, mut x: u32) -> u32 {
+        while self.parent[x as usize] != x {
+            x = self.parent[x as usize];
+        }
+        x
+    }
+
+    pub fn union(&mut self, a: u32, b: u32) -> bool {
+        let (mut ra, mut rb) = (self.find(a), self.find(b));
+        if ra == rb {
+            return false;
+        }
+        if self.size[ra as usize] < self.size[rb as usize] {
+            std::mem::swap(&mut ra, &mut rb);
+        }
+        self.log.push((rb, self.size[ra as usize]));
+        self.parent[rb as usize] = ra;
+        self.size[ra as usize] += self.size[rb as usize];
+        true
+    }
+
+    /// A point to roll back to: (elements, unions).
+    pub fn checkpoint(&self) -> (usize, usize) {
+        (self.parent.len(), self.log.len())
+    }
+
+    /// Undoes every union and element added since the checkpoint.
+    pub fn rollback(&mut self, to: (usize, usize)) {
+        while self.log.len() > to.1 {
+            let (child, old_size) = self.log.pop().unwrap();
+            let root = self.parent[child as usize];
+            self.parent[child as usize] = child;
+            self.size[root as usize] = old_size;
+        }
+        self.parent.truncate(to.0);
+        self.size.truncate(to.0);
+    }
+}
+
+/// Contour and ribbon nodes and the edges between them.
+#[derive(Clone, Debug, Default)]
+pub struct ReebGraph {
+    pub nodes: Vec<Node>,
+    pub adj: Vec<Vec<u32>>,
+    pub uf: RollbackUnionFind,
+    /// Breadth-first search scratch: visit stamp and predecessor per node.
+    stamp: Vec<u32>,
+    pred: Vec<u32>,
+    generation: u32,
+}
+
+impl ReebGraph {
+    pub fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
+        let id = self.nodes.len() as u32;
+        self.nodes.push(Node { kind, level, local });
+        self.adj.push(Vec::new());
+        self.uf.push();
+        id
+    }
+
+    pub fn add_edge(&mut self, a: u32, b: u32) {
+        self.adj[a as usize].push(b);
+        self.adj[b as usize].push(a);
+        self.uf.union(a, b);
+    }
+
+    pub fn connected(&self, a: u32, b: u32) -> bool {
+        self.uf.find(a) == self.uf.find(b)
+    }
+
+    /// Shortest path from `from` to `to` (both included), by breadth-first search.
+    pub fn shortest_path(&mut self, from: u32, to: u32) -> Option<Vec<u32>> {
+        let n = self.nodes.len();
+        if self.stamp.len() < n {
+            self.stamp.resize(n, 0);
+            self.pred.resize(n, u32::MAX);
+        }
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.generation = 1;
+        }
+        let g = self.generation;
+        let mut queue = std::collections::VecDeque::new();
+        self.stamp[from as usize] = g;
+        self.pred[from as usize] = u32::MAX;
+        queue.push_back(from);
+        while let Some(x) = queue.pop_front() {
+            if x == to {
+                let mut path = vec![to];
+                let mut y = to;
+                while self.pred[y as usize] != u32::MAX {
+                    y = self.pred[y as usize];
+                    path.push(y);
+                }
+                path.reverse();
+                return Some(path);
+            }
+            for k in 0..self.adj[x as usize].len() {
+                let y = self.adj[x as usize][k];
+                if self.stamp[y as usize] != g {
+                    self.stamp[y as usize] = g;
+                    self.pred[y as usize] = x;
+                    queue.push_back(y);
+                }
+            }
+        }
+        None
+    }
+
+    /// Removes every node from `first` on, with their edges and unions (the union-find must be
+    /// rolled back separately to the matching checkpoint).
+    pub fn truncate(&mut self, first: usize) {
+        self.nodes.truncate(first);
+        self.adj.truncate(first);
+        for a in &mut self.adj {
+            a.retain(|&b| (b as usize) < first);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rollback_restores_components() {
+        let mut uf = RollbackUnionFind::default();
+        for _ in 0..6 {
+            uf.push();
+        }
+        uf.union(0, 1);
+        let cp = uf.checkpoint();
+        uf.union(1, 2);
+        uf.push();
+        uf.union(6, 0);
+        assert_eq!(uf.find(2), uf.find(6));
+        uf.rollback(cp);
+        assert_eq!(uf.find(0), uf.find(1));
+        assert_ne!(uf.find(0), uf.find(2));
+        assert_eq!(uf.checkpoint(), cp);
+    }
+
+    #[test]
+    fn shortest_path_finds_the_short_way_round() {
+        let mut g = ReebGraph::default();
+        for i in 0..6 {
+            g.add_node(NodeKind::Contour, 0, i);
+        }
+        // 0-1-2-3 and 0-4-3, 5 isolated.
+        for (a, b) in [(0, 1), (1, 2), (2, 3), (0, 4), (4, 3)] {
+            g.add_edge(a, b);
+        }
+        assert_eq!(g.shortest_path(0, 3), Some(vec![0, 4, 3]));
+        assert_eq!(g.shortest_path(0, 5), None);
+    }
+}

@@ -1,0 +1,208 @@
+//! Every handle is found: for every surface, handles located by the sweep == genus from the
+//! Euler characteristic, on synthetic shapes and random volumes, along all three axes, under both
+//! connectivities; and the known counts of Reeb cycles and intra-ribbon handles.
+
+mod common;
+
+use common::{shapes, Rng, BOTH};
+use isotopo::progress::NoProgress;
+use isotopo::sweep::{find_handles, Axis, HandleKind, HandleReport, MaskVolume};
+use isotopo::topology::Connectivity;
+use isotopo::volume::InMemoryVolume;
+
+const AXES: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+fn sweep(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> HandleReport {
+    let mut v = vol.clone();
+    let masks =
+        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, &NoProgress).unwrap();
+    find_handles(&masks, axis, conn, &NoProgress)
+        .unwrap_or_else(|e| panic!("sweep along {}: {e}", axis.name()))
+}
+
+/// Checks handles == genus per surface and in total (against the genus pass). Returns an error
+/// naming the volume, axis and surface.
+fn check(
+    vol: &InMemoryVolume,
+    iso: f64,
+    conn: Connectivity,
+    axis: Axis,
+    name: &str,
+) -> Result<HandleReport, String> {
+    let r = sweep(vol, iso, conn, axis);
+    let g = common::run_genus(vol, iso, conn);
+    for s in &r.surfaces {
+        if s.handles as i64 != s.genus {
+            return Err(format!(
+                "{name}, axis {}, conn {}: surface {} has genus {} but {} handles located",
+                axis.name(),
+                conn.number(),
+                s.id,
+                s.genus,
+                s.handles
+            ));
+        }
+    }
+    if r.handles.len() as u64 != g.b1 || r.surfaces.len() != g.surfaces.len() {
+        return Err(format!(
+            "{name}, axis {}, conn {}: {} handles on {} surfaces, genus pass b1 {} on {} surfaces",
+            axis.name(),
+            conn.number(),
+            r.handles.len(),
+            r.surfaces.len(),
+            g.b1,
+            g.surfaces.len()
+        ));
+    }
+    // Same surface numbering and genus as the genus pass.
+    for s in &g.surfaces {
+        if r.surfaces[s.id].genus != s.genus as i64 {
+            return Err(format!(
+                "{name}, axis {}: surface {} genus {} in the sweep, {} in the genus pass",
+                axis.name(),
+                s.id,
+                r.surfaces[s.id].genus,
+                s.genus
+            ));
+        }
+    }
+    Ok(r)
+}
+
+fn count(r: &HandleReport, kind: HandleKind) -> usize {
+    r.handles.iter().filter(|h| h.located.kind == kind).count()
+}
+
+#[test]
+fn every_handle_of_every_shape_is_found_along_every_axis() {
+    let mut failures = Vec::new();
+    for s in shapes::all() {
+        for conn in BOTH {
+            for axis in AXES {
+                if let Err(e) = check(&s.volume, 0.0, conn, axis, &s.name) {
+                    failures.push(e);
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "\n{}", failures.join("\n"));
+}
+
+/// The paper's figure 7: a torus made of two C-shaped contours in consecutive planes has no Reeb
+/// cycle along z, only an intra-ribbon handle.
+fn two_c_torus() -> InMemoryVolume {
+    InMemoryVolume::from_fn([16, 16, 8], |x, y, z| {
+        let (dx, dy) = (x as f64 - 7.6, y as f64 - 7.4);
+        let r = dx.hypot(dy);
+        let a = dy.atan2(dx).to_degrees();
+        let ring = (2.5..5.5).contains(&r);
+        let c = match z {
+            3 => ring && !(-35.0..35.0).contains(&a),
+            4 => ring && a.abs() < 145.0,
+            _ => false,
+        };
+        if c {
+            1.0
+        } else {
+            -1.0
+        }
+    })
+}
+
+#[test]
+fn the_two_c_torus_is_an_intra_ribbon_handle_along_z() {
+    let vol = two_c_torus();
+    for conn in BOTH {
+        let r = check(&vol, 0.0, conn, Axis::Z, "two-C torus").unwrap();
+        assert_eq!(count(&r, HandleKind::ReebCycle), 0);
+        assert_eq!(count(&r, HandleKind::IntraRibbon), 1);
+        for axis in [Axis::X, Axis::Y] {
+            check(&vol, 0.0, conn, axis, "two-C torus").unwrap();
+        }
+    }
+}
+
+#[test]
+fn known_counts() {
+    use std::f64::consts::FRAC_PI_2;
+    let cases: Vec<(&str, InMemoryVolume, usize)> = vec![
+        (
+            "upright torus",
+            shapes::torus(26, 8.0, 3.0, 0.0, 0.0, 0.0),
+            1,
+        ),
+        (
+            "torus on its side",
+            shapes::torus(26, 8.0, 3.0, FRAC_PI_2, 0.0, 0.0),
+            1,
+        ),
+        ("ball", shapes::ball(20, 7.3), 0),
+        (
+            "bowl",
+            shapes::field(24, |p| {
+                let d = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                (9.0 - d).min(d - 6.0).min(-p[2])
+            }),
+            0,
+        ),
+    ];
+    for (name, vol, n) in cases {
+        for conn in BOTH {
+            let r = check(&vol, 0.0, conn, Axis::Z, name).unwrap();
+            assert_eq!(r.handles.len(), n, "{name}");
+            assert_eq!(count(&r, HandleKind::ReebCycle), n, "{name}: Reeb cycles");
+        }
+    }
+    for holes in 1..=4 {
+        let vol = shapes::holed_slab(holes);
+        for axis in AXES {
+            let r = check(&vol, 0.0, Connectivity::Six, axis, "slab").unwrap();
+            assert_eq!(
+                r.handles.len(),
+                holes,
+                "{holes}-holed slab along {}",
+                axis.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn random_volumes_all_axes_both_connectivities() {
+    let mut rng = Rng(4242);
+    let mut failures = Vec::new();
+    let mut n = 0;
+    let mut intra = 0;
+    for round in 0..50 {
+        let dims = [
+            [8, 9, 7],
+            [12, 12, 12],
+            [16, 10, 14],
+            [20, 18, 16],
+            [10, 22, 12],
+        ][round % 5];
+        let v = common::smoothed_noise(dims, 1 + round % 3, &mut rng);
+        let vol = common::volume_from(dims, &v);
+        let iso = common::quantile(&v, 0.35 + 0.3 * rng.f64());
+        for conn in BOTH {
+            for axis in AXES {
+                n += 1;
+                match check(&vol, iso, conn, axis, &format!("noise round {round}")) {
+                    Ok(r) => intra += count(&r, HandleKind::IntraRibbon),
+                    Err(e) => failures.push(e),
+                }
+            }
+        }
+    }
+    assert!(n >= 300);
+    assert!(
+        failures.is_empty(),
+        "{} of {n}:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    assert!(
+        intra > 0,
+        "random volumes should exercise intra-ribbon handles"
+    );
+}
