@@ -48,28 +48,54 @@ pub fn key(v: Vertex) -> u64 {
     c(v.p[0]) | (c(v.p[1]) << 20) | (c(v.p[2]) << 40) | ((v.axis as u64) << 60)
 }
 
-/// Neighbourhoods, computed once per vertex during a search.
+/// Neighbourhoods, computed once per vertex and kept for later searches on the same volume.
 pub struct Graph<'a> {
     pub vol: &'a MaskVolume,
     pub table: &'a [Case; 256],
-    cache: FastMap<u64, Option<Around>>,
+    index: FastMap<u64, u32>,
+    arena: Vec<Around>,
 }
+
+/// Marks a vertex that is not on the surface.
+const ABSENT: u32 = u32::MAX;
 
 impl<'a> Graph<'a> {
     pub fn new(vol: &'a MaskVolume, table: &'a [Case; 256]) -> Graph<'a> {
         Graph {
             vol,
             table,
-            cache: FastMap::default(),
+            index: FastMap::default(),
+            arena: Vec::new(),
         }
     }
 
+    /// Index of `v`'s neighbourhood in the cache (computing it the first time), or `None` if no
+    /// surface crosses that edge.
+    #[inline]
+    pub fn index(&mut self, v: Vertex) -> Option<u32> {
+        let k = key(v);
+        if let Some(&i) = self.index.get(&k) {
+            return (i != ABSENT).then_some(i);
+        }
+        let i = match around(self.vol, self.table, v) {
+            Some(a) => {
+                self.arena.push(a);
+                self.arena.len() as u32 - 1
+            }
+            None => ABSENT,
+        };
+        self.index.insert(k, i);
+        (i != ABSENT).then_some(i)
+    }
+
+    #[inline]
+    pub fn at(&self, i: u32) -> &Around {
+        &self.arena[i as usize]
+    }
+
+    /// A copy of `v`'s neighbourhood.
     pub fn around(&mut self, v: Vertex) -> Option<Around> {
-        let (vol, table) = (self.vol, self.table);
-        *self
-            .cache
-            .entry(key(v))
-            .or_insert_with(|| around(vol, table, v))
+        self.index(v).map(|i| self.arena[i as usize])
     }
 }
 
@@ -149,16 +175,13 @@ pub fn shortest_odd_loop(
     shortest_loop_with_parities(g, cut, &[], region, limit)
 }
 
+/// Most curves a search can take parities against.
+const MAX_CUTS: usize = 16;
+
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
 /// `even` an even number of times, shorter than `limit` edges.
-pub fn shortest_loop_with_parities(
-    g: &mut Graph,
-    cut: &[Vertex],
-    even: &[&[Vertex]],
-    region: &dyn Region,
-    limit: usize,
-) -> Option<Vec<Vertex>> {
-    if cut.len() < 2 || even.len() > 31 {
+pub fn shortest_loop_with_parities(g: &mut Graph, cut: &[Vertex], even: &[&[Vertex]], region: &dyn Region, limit: usize) -> Option<Vec<Vertex>> {
+    if cut.len() < 2 || even.len() + 1 > MAX_CUTS {
         return None;
     }
     // Left marks of every curve; bit c of a state's parity is the crossings of curve c, mod 2.
@@ -177,7 +200,8 @@ pub fn shortest_loop_with_parities(
     sources.sort();
     sources.dedup();
     for &s in &sources {
-        let Some(sa) = g.around(s) else { continue };
+        let Some(si) = g.index(s) else { continue };
+        let sa = g.at(si);
         if !sa.piece[..sa.n].iter().any(|p| region.allows(p)) {
             continue;
         }
@@ -194,18 +218,21 @@ pub fn shortest_loop_with_parities(
             if d as usize + 1 >= best_len {
                 break;
             }
-            let Some(a) = g.around(v) else { continue };
-            let mv: Vec<u16> = marks
-                .iter()
-                .map(|m| m.get(&kv).copied().unwrap_or(0))
-                .collect();
-            for k in 0..a.n {
+            let Some(vi) = g.index(v) else { continue };
+            let mut mv = [0u16; MAX_CUTS];
+            for (c, m) in marks.iter().enumerate() {
+                mv[c] = m.get(&kv).copied().unwrap_or(0);
+            }
+            let n = g.at(vi).n;
+            for k in 0..n {
                 // The edge v -> nbr[k] runs between piece[k-1] and piece[k].
-                let (left, right) = a.sides(k);
+                let (w, (left, right)) = {
+                    let a = g.at(vi);
+                    (a.nbr[k], a.sides(k))
+                };
                 if !region.allows(&left) && !region.allows(&right) {
                     continue;
                 }
-                let w = a.nbr[k];
                 let kw = key(w);
                 let mut flip = 0u32;
                 let mut back = None;
@@ -214,7 +241,7 @@ pub fn shortest_loop_with_parities(
                     if let Some(&mw) = m.get(&kw) {
                         // The same edge seen from w.
                         if back.is_none() {
-                            back = g.around(w).and_then(|b| b.position(v));
+                            back = g.index(w).and_then(|wi| g.at(wi).position(v));
                         }
                         if let Some(j) = back {
                             f ^= (mw >> j) & 1 == 1;
@@ -223,11 +250,12 @@ pub fn shortest_loop_with_parities(
                     flip |= (f as u32) << c;
                 }
                 let np = par ^ flip;
-                if seen.contains_key(&(kw, np)) {
+                if let std::collections::hash_map::Entry::Vacant(e) = seen.entry((kw, np)) {
+                    e.insert((d + 1, kv, par));
+                } else {
                     continue;
                 }
-                seen.insert((kw, np), (d + 1, kv, par));
-                verts.insert(kw, w);
+                verts.entry(kw).or_insert(w);
                 if kw == ks && np == goal {
                     found = Some(d + 1);
                     break 'bfs;
@@ -258,10 +286,45 @@ pub fn shortest_loop_with_parities(
     best
 }
 
-/// Is the loop non-separating on the surface (within the region)? True when some loop crosses
-/// it an odd number of times.
+/// Is the loop non-separating on the surface (within the region)? It is exactly when, starting
+/// on one side of it at one of its vertices, the other side of that vertex can be reached
+/// without crossing it: one breadth-first search of the double cover.
 pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bool {
-    shortest_odd_loop(g, lp, region, usize::MAX).is_some()
+    let Some(marks) = left_marks(g, lp) else { return false };
+    let s = lp[0];
+    let ks = key(s);
+    let mut seen: FastMap<(u64, bool), ()> = FastMap::default();
+    let mut stack = vec![(s, false)];
+    seen.insert((ks, false), ());
+    while let Some((v, par)) = stack.pop() {
+        let kv = key(v);
+        let Some(vi) = g.index(v) else { continue };
+        let mv = marks.get(&kv).copied().unwrap_or(0);
+        for k in 0..g.at(vi).n {
+            let (w, (left, right)) = {
+                let a = g.at(vi);
+                (a.nbr[k], a.sides(k))
+            };
+            if !region.allows(&left) && !region.allows(&right) {
+                continue;
+            }
+            let kw = key(w);
+            let mut flip = (mv >> k) & 1 == 1;
+            if let Some(&mw) = marks.get(&kw) {
+                if let Some(j) = g.index(w).and_then(|wi| g.at(wi).position(v)) {
+                    flip ^= (mw >> j) & 1 == 1;
+                }
+            }
+            let np = par ^ flip;
+            if kw == ks && np {
+                return true;
+            }
+            if seen.insert((kw, np), ()).is_none() {
+                stack.push((w, np));
+            }
+        }
+    }
+    false
 }
 
 #[cfg(test)]
