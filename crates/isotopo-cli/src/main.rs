@@ -31,6 +31,40 @@ enum Command {
     Mesh(MeshArgs),
     /// Locate every handle with a sweep (Reeb graph of contours and ribbons).
     Handles(HandlesArgs),
+    /// Locate every handle and measure it: Reeb loop, cross loop, size; statistics and plots.
+    Analyze(AnalyzeArgs),
+}
+
+#[derive(Args)]
+struct AnalyzeArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    /// Sweep direction.
+    #[arg(long, value_enum, default_value = "z")]
+    axis: AxisArg,
+    /// Stop cross-loop searches at this length (voxel edges): longer loops cannot matter when
+    /// simplifying with this threshold. Default: no limit.
+    #[arg(long)]
+    tau: Option<f64>,
+    /// Print one JSON object (handles with their loops) instead of text.
+    #[arg(long, conflicts_with = "csv")]
+    json: bool,
+    /// Print one CSV row per handle instead of text.
+    #[arg(long)]
+    csv: bool,
+    /// Write the loops as polylines (.obj or .ply, world mm; Reeb loops blue, cross loops red).
+    #[arg(long, value_name = "OUT")]
+    loops: Option<PathBuf>,
+    /// Write a histogram of handle sizes and a Reeb vs cross loop scatter plot (SVG and PNG).
+    #[arg(long, value_name = "DIR")]
+    plots: Option<PathBuf>,
+    /// List every handle, not only the 30 largest.
+    #[arg(long)]
+    all: bool,
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
@@ -257,6 +291,7 @@ fn main() -> ExitCode {
         Command::Genus(a) => cmd_genus(a),
         Command::Mesh(a) => cmd_mesh(a),
         Command::Handles(a) => cmd_handles(a),
+        Command::Analyze(a) => cmd_analyze(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -640,5 +675,237 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
         );
     }
     println!("time        {:.2} s", secs);
+    Ok(())
+}
+
+fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
+    let opts = a.surface.options()?;
+    let axis = a.axis.axis();
+    let mut reader = a.input.open()?;
+    let info = reader.info().clone();
+    if let Some(p) = &a.loops {
+        volume::check_output_path(p, &info)?;
+    }
+    let tau = match a.tau {
+        Some(t) if t.is_nan() || t <= 0.0 => {
+            return Err(Error::usage("--tau must be positive (or inf)"))
+        }
+        t => t,
+    };
+    let limits = isotopo::loops::Limits {
+        reeb: usize::MAX,
+        cross: tau
+            .filter(|t| t.is_finite())
+            .map(|t| t.ceil() as usize)
+            .unwrap_or(usize::MAX),
+    };
+    let bars = progress::Bars::new(a.quiet || a.json || a.csv);
+    let t = Instant::now();
+    let masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
+    let report = isotopo::sweep::find_handles(&masks, axis, opts.connectivity, &bars)?;
+    let t_sweep = t.elapsed().as_secs_f64();
+    let loops = isotopo::loops::measure_all(
+        &masks,
+        &report.handles,
+        opts.connectivity,
+        &info.affine,
+        limits,
+        &bars,
+    );
+    let secs = t.elapsed().as_secs_f64();
+    if let Some(p) = &a.loops {
+        isotopo::report::write_loops(p, &loops, &info.affine)?;
+    }
+    let name = info
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let mut plot_files = Vec::new();
+    if let Some(dir) = &a.plots {
+        let points: Vec<isotopo::plots::PlotPoint> = loops
+            .iter()
+            .map(|l| isotopo::plots::PlotPoint {
+                reeb: l.reeb.as_ref().map(|x| x.length),
+                cross: l.cross.as_ref().map(|x| x.length),
+                void: l
+                    .smallest()
+                    .map(|x| x.encloses == isotopo::loops::Encloses::Void)
+                    .unwrap_or(false),
+            })
+            .collect();
+        plot_files = isotopo::plots::write(dir, &name, &points, tau)?;
+    }
+    if a.json {
+        let v = serde_json::json!({
+            "file": info.path,
+            "dims": info.dims,
+            "iso": opts.iso,
+            "inside": inside_name(opts.inside),
+            "connectivity": opts.connectivity.number(),
+            "axis": axis.name(),
+            "tau": tau.filter(|t| t.is_finite()),
+            "genus": report.genus,
+            "handles": isotopo::report::analysis_json(&report, &info, &loops),
+            "surfaces": report.surfaces,
+            "seconds": secs,
+            "seconds_sweep": t_sweep,
+        });
+        println!("{}", to_json(&v)?);
+        return Ok(());
+    }
+    if a.csv {
+        print!("{}", isotopo::report::analysis_csv(&report, &info, &loops));
+        return Ok(());
+    }
+    let reeb = report
+        .handles
+        .iter()
+        .filter(|h| h.located.kind == isotopo::sweep::HandleKind::ReebCycle)
+        .count();
+    println!(
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}",
+        info.path.display(),
+        num(opts.iso),
+        inside_name(opts.inside),
+        opts.connectivity.number(),
+        axis.name()
+    );
+    println!(
+        "handles     {} ({} Reeb cycles, {} intra-ribbon); genus from the Euler characteristic: {}",
+        report.handles.len(),
+        reeb,
+        report.handles.len() - reeb,
+        report.genus
+    );
+    let sizes: Vec<Option<usize>> = loops.iter().map(|l| l.size()).collect();
+    let below = |t: usize| sizes.iter().filter(|s| s.is_some_and(|s| s < t)).count();
+    println!(
+        "sizes       {} below 10, {} below 20, {} below 50, {} of 50 or more (voxel edges: the shorter of the two loops)",
+        below(10),
+        below(20),
+        below(50),
+        report.handles.len() - below(50)
+    );
+    // A text histogram of sizes.
+    let bins: &[(usize, usize)] = &[
+        (0, 4),
+        (4, 5),
+        (5, 7),
+        (7, 9),
+        (9, 12),
+        (12, 16),
+        (16, 24),
+        (24, 32),
+        (32, 50),
+        (50, 100),
+        (100, 200),
+        (200, usize::MAX),
+    ];
+    let counts: Vec<usize> = bins
+        .iter()
+        .map(|&(lo, hi)| {
+            sizes
+                .iter()
+                .filter(|s| s.is_some_and(|s| s >= lo && s < hi))
+                .count()
+        })
+        .collect();
+    let beyond = sizes.iter().filter(|s| s.is_none()).count();
+    let maxc = counts.iter().copied().max().unwrap_or(1).max(beyond).max(1);
+    for (&(lo, hi), &c) in bins.iter().zip(&counts) {
+        if c == 0 && lo >= 50 {
+            continue;
+        }
+        let label = if hi == usize::MAX {
+            format!("{lo}+")
+        } else {
+            format!("{lo}-{}", hi - 1)
+        };
+        println!(
+            "  {:>8} {:<40} {}",
+            label,
+            "#".repeat((c * 40).div_ceil(maxc)),
+            c
+        );
+    }
+    if beyond > 0 {
+        println!(
+            "  {:>8} {:<40} {}",
+            format!(">={}", limits.cross),
+            "#".repeat((beyond * 40).div_ceil(maxc)),
+            beyond
+        );
+    }
+    // Largest handles first: those are the ones a threshold should keep.
+    let mut order: Vec<usize> = (0..loops.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(sizes[i].unwrap_or(usize::MAX)));
+    let shown = if a.all {
+        order.len()
+    } else {
+        order.len().min(30)
+    };
+    if shown > 0 {
+        println!(
+            "  {:>5} {:>7}  {:<12} {:>6} {:>18} {:>18}  bbox (voxels)",
+            "id", "surface", "kind", "size", "Reeb loop", "cross loop"
+        );
+    }
+    let fmt_loop = |l: &Option<isotopo::loops::Loop>| match l {
+        Some(l) => format!(
+            "{} ({:.0} mm, {})",
+            l.length,
+            l.length_mm,
+            if l.encloses == isotopo::loops::Encloses::Material {
+                "mat"
+            } else {
+                "void"
+            }
+        ),
+        None => format!(">={}", limits.cross),
+    };
+    for &i in order.iter().take(shown) {
+        let h = &report.handles[i];
+        let b = &h.located.bbox;
+        println!(
+            "  {:>5} {:>7}  {:<12} {:>6} {:>18} {:>18}  [{}..{}, {}..{}, {}..{}]",
+            h.id,
+            h.surface,
+            if h.located.kind == isotopo::sweep::HandleKind::ReebCycle {
+                "reeb_cycle"
+            } else {
+                "intra_ribbon"
+            },
+            sizes[i]
+                .map(|s| s.to_string())
+                .unwrap_or_else(|| "-".into()),
+            fmt_loop(&loops[i].reeb),
+            fmt_loop(&loops[i].cross),
+            b.min[0],
+            b.max[0],
+            b.min[1],
+            b.max[1],
+            b.min[2],
+            b.max[2]
+        );
+    }
+    if shown < order.len() {
+        println!(
+            "  … {} more (--all, --json or --csv list them)",
+            order.len() - shown
+        );
+    }
+    if let Some(p) = &a.loops {
+        println!("loops       {}", p.display());
+    }
+    for f in &plot_files {
+        println!("plot        {}", f.display());
+    }
+    println!(
+        "time        {:.2} s ({:.2} s sweep, {:.2} s loops)",
+        secs,
+        t_sweep,
+        secs - t_sweep
+    );
     Ok(())
 }

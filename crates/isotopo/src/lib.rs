@@ -25,6 +25,7 @@
 pub mod error;
 pub mod loops;
 pub mod mesh;
+pub mod plots;
 pub mod progress;
 pub mod report;
 pub mod surface;

@@ -1,8 +1,175 @@
 //! JSON shapes of the reports, kept in one place so the keys stay stable.
 
+use crate::error::{Error, Result};
+use crate::loops::{HandleLoops, Loop};
 use crate::sweep::{CycleVolume, HandleReport, NodeKind};
-use crate::volume::VolumeInfo;
+use crate::volume::{Affine, AtomicOutput, Compression, VolumeInfo};
 use serde_json::{json, Value};
+use std::path::Path;
+
+/// A loop as JSON: `length` (voxel edges), `length_mm`, `encloses` (`material` or `void`) and
+/// `points` (the closed polyline through edge midpoints, voxel coordinates).
+pub fn loop_json(l: &Loop) -> Value {
+    let round = |x: f64| (x * 1000.0).round() / 1000.0;
+    json!({
+        "length": l.length,
+        "length_mm": round(l.length_mm),
+        "encloses": l.encloses,
+        "points": l.points.iter().map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>(),
+    })
+}
+
+/// Handles as JSON, with their loops when measured: each handle adds `reeb_loop`, `cross_loop`
+/// (null when longer than the search limit) and `size` (the shorter length; null when both
+/// were beyond the limit).
+pub fn analysis_json(
+    report: &HandleReport,
+    info: &VolumeInfo,
+    loops: &[HandleLoops],
+) -> Vec<Value> {
+    let mut v = handles_json(report, info);
+    for (h, l) in v.iter_mut().zip(loops) {
+        // Where the handle is: the box of its loops (the cycle's ribbons can span a whole slice).
+        if let Some(b) = l.bbox() {
+            h["cycle_bbox"] = h["bbox"].clone();
+            h["bbox"] = json!(b);
+            h["bbox_mm"] = json!(b.to_mm(&info.affine));
+        }
+        h["reeb_loop"] = l.reeb.as_ref().map(loop_json).unwrap_or(Value::Null);
+        h["cross_loop"] = l.cross.as_ref().map(loop_json).unwrap_or(Value::Null);
+        h["size"] = l.size().map(Value::from).unwrap_or(Value::Null);
+        h["size_mm"] = l
+            .smallest()
+            .map(|s| Value::from((s.length_mm * 1000.0).round() / 1000.0))
+            .unwrap_or(Value::Null);
+    }
+    v
+}
+
+/// The same as CSV: one row per handle.
+pub fn analysis_csv(report: &HandleReport, info: &VolumeInfo, loops: &[HandleLoops]) -> String {
+    let rows = analysis_json(report, info, loops);
+    let mut s = String::from("id,surface,kind,slice_min,slice_max,x_min,x_max,y_min,y_max,z_min,z_max,reeb_length,reeb_length_mm,reeb_encloses,cross_length,cross_length_mm,cross_encloses,size,size_mm\n");
+    let f = |v: &Value| match v {
+        Value::Null => String::new(),
+        Value::String(x) => x.clone(),
+        other => other.to_string(),
+    };
+    for r in rows {
+        let b = &r["bbox"];
+        let lp = |name: &str, field: &str| f(&r[name][field]);
+        s.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            r["id"],
+            r["surface"],
+            f(&r["kind"]),
+            r["slices"][0],
+            r["slices"][1],
+            b["min"][0],
+            b["max"][0],
+            b["min"][1],
+            b["max"][1],
+            b["min"][2],
+            b["max"][2],
+            lp("reeb_loop", "length"),
+            lp("reeb_loop", "length_mm"),
+            lp("reeb_loop", "encloses"),
+            lp("cross_loop", "length"),
+            lp("cross_loop", "length_mm"),
+            lp("cross_loop", "encloses"),
+            f(&r["size"]),
+            f(&r["size_mm"])
+        ));
+    }
+    s
+}
+
+/// Writes the loops as closed polylines in world millimetres (the mesh's frame): `.obj` (`l`
+/// elements, vertex colours) or `.ply` (vertices with colours, edges). Reeb loops are blue,
+/// cross loops red.
+pub fn write_loops(path: &Path, loops: &[HandleLoops], affine: &Affine) -> Result<()> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let mut polylines: Vec<(String, [u8; 3], Vec<[f64; 3]>)> = Vec::new();
+    for (i, l) in loops.iter().enumerate() {
+        if let Some(r) = &l.reeb {
+            polylines.push((
+                format!("handle_{i}_reeb_loop"),
+                [40, 90, 255],
+                r.points.iter().map(|p| affine.apply(*p)).collect(),
+            ));
+        }
+        if let Some(c) = &l.cross {
+            polylines.push((
+                format!("handle_{i}_cross_loop"),
+                [255, 50, 40],
+                c.points.iter().map(|p| affine.apply(*p)).collect(),
+            ));
+        }
+    }
+    let mut out = AtomicOutput::create(path, Compression::None)?;
+    match ext.as_str() {
+        "obj" => {
+            let mut s = String::from("# isotopo handle loops, world coordinates in mm (RAS); Reeb loops blue, cross loops red\n");
+            let mut base = 1;
+            for (name, c, pts) in &polylines {
+                s.push_str(&format!("o {name}\n"));
+                for p in pts {
+                    s.push_str(&format!(
+                        "v {} {} {} {:.3} {:.3} {:.3}\n",
+                        p[0],
+                        p[1],
+                        p[2],
+                        c[0] as f64 / 255.0,
+                        c[1] as f64 / 255.0,
+                        c[2] as f64 / 255.0
+                    ));
+                }
+                s.push('l');
+                for k in 0..pts.len() {
+                    s.push_str(&format!(" {}", base + k));
+                }
+                s.push_str(&format!(" {base}\n"));
+                base += pts.len();
+            }
+            out.write_all(s.as_bytes())?;
+        }
+        "ply" => {
+            let nv: usize = polylines.iter().map(|p| p.2.len()).sum();
+            let header = format!(
+                "ply\nformat binary_little_endian 1.0\ncomment isotopo handle loops, world coordinates in mm (RAS); Reeb loops blue, cross loops red\nelement vertex {nv}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement edge {nv}\nproperty int vertex1\nproperty int vertex2\nend_header\n"
+            );
+            let mut b = header.into_bytes();
+            for (_, c, pts) in &polylines {
+                for p in pts {
+                    for x in p {
+                        b.extend_from_slice(&(*x as f32).to_le_bytes());
+                    }
+                    b.extend_from_slice(c);
+                }
+            }
+            let mut base = 0i32;
+            for (_, _, pts) in &polylines {
+                let n = pts.len() as i32;
+                for k in 0..n {
+                    b.extend_from_slice(&(base + k).to_le_bytes());
+                    b.extend_from_slice(&(base + (k + 1) % n).to_le_bytes());
+                }
+                base += n;
+            }
+            out.write_all(&b)?;
+        }
+        _ => {
+            return Err(Error::usage(format!(
+                "{}: write loops as .obj or .ply",
+                path.display()
+            )))
+        }
+    }
+    out.commit()
+}
 
 /// One JSON object per handle: `id`, `kind`, `surface`, `slices` (range along the sweep axis),
 /// `bbox` (voxels) and `bbox_mm`, and `cycle` (its ribbons and contours).

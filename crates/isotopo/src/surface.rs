@@ -30,6 +30,24 @@ pub struct Vertex {
 }
 
 impl Vertex {
+    /// Packs the vertex into a u64 (coordinates -1 ..= 2^20 - 2; volumes are at most
+    /// [`crate::volume::MAX_DIM`] samples along an axis).
+    #[inline]
+    pub fn key(&self) -> u64 {
+        let c = |x: i64| (x + 1) as u64 & 0xF_FFFF;
+        c(self.p[0]) | (c(self.p[1]) << 20) | (c(self.p[2]) << 40) | ((self.axis as u64) << 60)
+    }
+
+    /// The vertex a [`Vertex::key`] stands for.
+    #[inline]
+    pub fn from_key(k: u64) -> Vertex {
+        let c = |shift: u32| ((k >> shift) & 0xF_FFFF) as i64 - 1;
+        Vertex {
+            p: [c(0), c(20), c(40)],
+            axis: (k >> 60) as u8,
+        }
+    }
+
     /// Midpoint of the edge, in volume-local voxel coordinates.
     pub fn midpoint(&self) -> [f64; 3] {
         let mut m = [self.p[0] as f64, self.p[1] as f64, self.p[2] as f64];
@@ -58,32 +76,77 @@ pub struct PieceRef {
 /// Most neighbours a vertex can have: four segments, plus diagonals through tubes.
 pub const MAX_DEGREE: usize = 12;
 
-/// The neighbourhood of a crossing point.
+/// The neighbourhood of a crossing point, stored compactly (a search may number millions):
+/// neighbours as packed keys, pieces as one byte each (which of the four cubes around the edge,
+/// which piece, which tube triangle).
 #[derive(Clone, Copy, Debug)]
 pub struct Around {
+    center: Vertex,
     /// Number of neighbours (4, or more on a tube).
     pub n: usize,
-    /// The neighbours, clockwise seen from outside.
-    pub nbr: [Vertex; MAX_DEGREE],
-    /// `piece[k]` lies between `nbr[k]` and `nbr[(k + 1) % n]`.
-    pub piece: [PieceRef; MAX_DEGREE],
-    /// Whether the edge to `nbr[k]` is a diagonal through a tube rather than a segment on a face.
-    pub diagonal: [bool; MAX_DEGREE],
+    nbr: [u64; MAX_DEGREE],
+    piece: [u8; MAX_DEGREE],
+    /// Bit k: the edge to neighbour k is a diagonal through a tube, not a segment on a face.
+    diagonal: u16,
+}
+
+/// The two axes other than `axis`, in increasing order.
+#[inline]
+fn other_axes(axis: u8) -> (usize, usize) {
+    match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    }
 }
 
 impl Around {
-    pub fn neighbours(&self) -> &[Vertex] {
-        &self.nbr[..self.n]
+    /// Neighbour `k`, clockwise seen from outside.
+    #[inline]
+    pub fn nbr(&self, k: usize) -> Vertex {
+        Vertex::from_key(self.nbr[k])
     }
 
-    /// The pieces on either side of the edge to `nbr[k]`.
+    /// The packed key of neighbour `k`.
+    #[inline]
+    pub fn nbr_key(&self, k: usize) -> u64 {
+        self.nbr[k]
+    }
+
+    pub fn neighbours(&self) -> Vec<Vertex> {
+        (0..self.n).map(|k| self.nbr(k)).collect()
+    }
+
+    /// The piece between neighbours `k` and `k + 1`.
+    #[inline]
+    pub fn piece(&self, k: usize) -> PieceRef {
+        let code = self.piece[k];
+        let (lo, hi) = other_axes(self.center.axis);
+        let mut cube = self.center.p;
+        cube[lo] -= (code & 1) as i64;
+        cube[hi] -= ((code >> 1) & 1) as i64;
+        PieceRef {
+            cube,
+            index: (code >> 2) & 3,
+            part: code >> 4,
+        }
+    }
+
+    /// The pieces on either side of the edge to neighbour `k`.
     #[inline]
     pub fn sides(&self, k: usize) -> (PieceRef, PieceRef) {
-        (self.piece[(k + self.n - 1) % self.n], self.piece[k])
+        (self.piece((k + self.n - 1) % self.n), self.piece(k))
+    }
+
+    /// Is the edge to neighbour `k` a diagonal through a tube?
+    #[inline]
+    pub fn diagonal(&self, k: usize) -> bool {
+        (self.diagonal >> k) & 1 == 1
     }
 
     pub fn position(&self, w: Vertex) -> Option<usize> {
-        self.nbr[..self.n].iter().position(|&x| x == w)
+        let kw = w.key();
+        self.nbr[..self.n].iter().position(|&x| x == kw)
     }
 }
 
@@ -134,26 +197,15 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
     if !is_crossing(vol, v) {
         return None;
     }
-    let a = v.axis as usize;
-    let (lo, hi) = match a {
-        0 => (1, 2),
-        1 => (0, 2),
-        _ => (0, 1),
-    };
-    // The four cubes around the edge: one (prev, next, piece) link each; a tube gives one link
-    // per triangle through v instead, so the chain passes through its diagonals.
-    let mut links: [(Vertex, Vertex, PieceRef, bool); MAX_DEGREE] = [(
-        v,
-        v,
-        PieceRef {
-            cube: [0; 3],
-            index: 0,
-            part: 0,
-        },
-        false,
-    ); MAX_DEGREE];
+    let (lo, hi) = other_axes(v.axis);
+    // The four cubes around the edge: one (prev, next, piece code, diagonal) link each; a tube
+    // gives one link per triangle through v instead, so the chain passes through its diagonals.
+    let mut links = [(0u64, 0u64, 0u8, false); MAX_DEGREE];
     let mut n = 0;
-    for (dl, dh) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)] {
+    for (slot, (dl, dh)) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)]
+        .into_iter()
+        .enumerate()
+    {
         let mut q = v.p;
         q[lo] -= dl;
         q[hi] -= dh;
@@ -161,19 +213,15 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
         let e = local_edge(v.axis, dl, dh);
         let pi = case.edge_owner[e as usize];
         let piece = &case.pieces[pi as usize];
-        let pr = PieceRef {
-            cube: q,
-            index: pi,
-            part: 0,
-        };
+        let code = slot as u8 | (pi << 2);
         if piece.loops.len() == 1 {
             let lp = &piece.loops[0];
             let len = lp.len();
             let at = lp.iter().position(|&x| x == e)?;
             links[n] = (
-                vertex_of(q, lp[(at + len - 1) % len]),
-                vertex_of(q, lp[(at + 1) % len]),
-                pr,
+                vertex_of(q, lp[(at + len - 1) % len]).key(),
+                vertex_of(q, lp[(at + 1) % len]).key(),
+                code,
                 false,
             );
             n += 1;
@@ -184,33 +232,41 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
                 let Some(m) = t.iter().position(|&x| x == e) else {
                     continue;
                 };
+                if n == MAX_DEGREE {
+                    return None;
+                }
                 let (x, y) = (t[(m + 1) % 3], t[(m + 2) % 3]);
-                let part = PieceRef {
-                    part: 1 + ti as u8,
-                    ..pr
-                };
-                links[n] = (vertex_of(q, y), vertex_of(q, x), part, other(x));
+                links[n] = (
+                    vertex_of(q, y).key(),
+                    vertex_of(q, x).key(),
+                    code | ((1 + ti as u8) << 4),
+                    other(x),
+                );
                 n += 1;
             }
         }
     }
     // Chain: `chain[k]` runs nbr[k-1] -> v -> nbr[k], so it lies between those two.
     let mut out = Around {
+        center: v,
         n,
-        nbr: [v; MAX_DEGREE],
-        piece: [links[0].2; MAX_DEGREE],
-        diagonal: [false; MAX_DEGREE],
+        nbr: [0; MAX_DEGREE],
+        piece: [0; MAX_DEGREE],
+        diagonal: 0,
     };
-    let mut chain = [links[0].2; MAX_DEGREE];
+    let mut chain = [0u8; MAX_DEGREE];
     let mut cur = links[0];
     for k in 0..n {
         chain[k] = cur.2;
         out.nbr[k] = cur.1;
-        out.diagonal[k] = cur.3;
+        if cur.3 {
+            out.diagonal |= 1 << k;
+        }
         if k + 1 < n {
             cur = *links[..n].iter().find(|l| l.0 == cur.1)?;
         }
     }
+    // piece[k] between nbr[k] and nbr[k + 1].
     for k in 0..n {
         out.piece[k] = chain[(k + 1) % n];
     }
@@ -242,7 +298,7 @@ mod tests {
                             continue;
                         };
                         for k in 0..a.n {
-                            let p = a.piece[k];
+                            let p = a.piece(k);
                             let case = &t[cube_case(&vol, p.cube) as usize];
                             let verts: Vec<Vertex> = case.pieces[p.index as usize]
                                 .loops
@@ -252,8 +308,8 @@ mod tests {
                                 .collect();
                             assert!(
                                 verts.contains(&v)
-                                    && verts.contains(&a.nbr[k])
-                                    && verts.contains(&a.nbr[(k + 1) % a.n]),
+                                    && verts.contains(&a.nbr(k))
+                                    && verts.contains(&a.nbr((k + 1) % a.n)),
                                 "{v:?} piece {k}"
                             );
                         }
@@ -275,12 +331,12 @@ mod tests {
             };
             let a = around(&vol, t, v).expect("crossing");
             assert_eq!(a.n, 4);
-            let mut n = a.neighbours().to_vec();
+            let mut n = a.neighbours();
             n.sort();
             n.dedup();
             assert_eq!(n.len(), 4);
             // Each neighbour's neighbourhood contains v back.
-            for &w in a.neighbours() {
+            for w in a.neighbours() {
                 let b = around(&vol, t, w).unwrap();
                 assert!(b.position(v).is_some());
             }
@@ -317,8 +373,8 @@ mod tube_tests {
                         let Some(a) = around(&vol, t, v) else {
                             continue;
                         };
-                        diagonals += a.diagonal[..a.n].iter().filter(|&&d| d).count();
-                        for &w in a.neighbours() {
+                        diagonals += (0..a.n).filter(|&k| a.diagonal(k)).count();
+                        for w in a.neighbours() {
                             assert!(
                                 around(&vol, t, w).unwrap().position(v).is_some(),
                                 "{v:?} -> {w:?} not symmetric"
@@ -332,5 +388,30 @@ mod tube_tests {
             diagonals, 12,
             "a tube strip has 6 diagonals, seen from both ends"
         );
+    }
+}
+
+#[cfg(test)]
+mod key_tests {
+    use super::*;
+
+    #[test]
+    fn keys_round_trip() {
+        for v in [
+            Vertex {
+                p: [-1, -1, -1],
+                axis: 0,
+            },
+            Vertex {
+                p: [0, 5, 1_000_000],
+                axis: 2,
+            },
+            Vertex {
+                p: [123, 456, 789],
+                axis: 1,
+            },
+        ] {
+            assert_eq!(Vertex::from_key(v.key()), v);
+        }
     }
 }

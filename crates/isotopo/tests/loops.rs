@@ -5,7 +5,7 @@ mod common;
 
 use common::{shapes, Rng, BOTH};
 use isotopo::loops::search::{is_nonseparating, Everywhere, Graph};
-use isotopo::loops::{measure, Encloses, HandleLoops, Limits};
+use isotopo::loops::{measure, Encloses, HandleLoops, Limits, SliceCache};
 use isotopo::progress::NoProgress;
 use isotopo::surface::Vertex;
 use isotopo::sweep::{find_handles, Axis, HandleReport, MaskVolume};
@@ -14,13 +14,23 @@ use isotopo::topology::Connectivity;
 use isotopo::volume::{Affine, InMemoryVolume};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, FRAC_PI_6, TAU};
 
-fn analyze(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> (MaskVolume, HandleReport, Vec<HandleLoops>) {
+fn analyze(
+    vol: &InMemoryVolume,
+    iso: f64,
+    conn: Connectivity,
+    axis: Axis,
+) -> (MaskVolume, HandleReport, Vec<HandleLoops>) {
     let mut v = vol.clone();
-    let masks = MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, &NoProgress).unwrap();
+    let masks =
+        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, &NoProgress).unwrap();
     let r = find_handles(&masks, axis, conn, &NoProgress).unwrap();
     let loops = {
         let mut g = Graph::new(&masks, cases(conn));
-        r.handles.iter().map(|h| measure(&mut g, h, conn, &Affine::IDENTITY, Limits::NONE)).collect()
+        let mut cache = SliceCache::new(&masks, conn);
+        r.handles
+            .iter()
+            .map(|h| measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, Limits::NONE))
+            .collect()
     };
     (masks, r, loops)
 }
@@ -36,7 +46,9 @@ fn check_loop(g: &mut Graph, lp: &[Vertex], what: &str) -> Result<(), String> {
             return Err(format!("{what}: vertex {v:?} visited twice"));
         }
         let w = lp[(i + 1) % lp.len()];
-        let a = g.around(v).ok_or_else(|| format!("{what}: {v:?} is not on the surface"))?;
+        let a = g
+            .around(v)
+            .ok_or_else(|| format!("{what}: {v:?} is not on the surface"))?;
         if a.position(w).is_none() {
             return Err(format!("{what}: {v:?} and {w:?} are not adjacent"));
         }
@@ -47,11 +59,24 @@ fn check_loop(g: &mut Graph, lp: &[Vertex], what: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn check_all(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis, name: &str, failures: &mut Vec<String>) -> usize {
+fn check_all(
+    vol: &InMemoryVolume,
+    iso: f64,
+    conn: Connectivity,
+    axis: Axis,
+    name: &str,
+    failures: &mut Vec<String>,
+) -> usize {
     let (masks, r, loops) = analyze(vol, iso, conn, axis);
     let mut g = Graph::new(&masks, cases(conn));
     for (h, l) in r.handles.iter().zip(&loops) {
-        let what = format!("{name} axis {} conn {} handle {} ({:?})", axis.name(), conn.number(), h.id, h.located.kind);
+        let what = format!(
+            "{name} axis {} conn {} handle {} ({:?})",
+            axis.name(),
+            conn.number(),
+            h.id,
+            h.located.kind
+        );
         match (&l.reeb, &l.cross) {
             (Some(a), Some(b)) => {
                 for (lp, which) in [(a, "Reeb loop"), (b, "cross loop")] {
@@ -81,14 +106,24 @@ fn every_loop_of_every_shape_is_a_real_loop() {
         let runs: &[(Connectivity, Axis)] = if s.name.contains("gyroid") {
             &[(Connectivity::Six, Axis::Z)]
         } else {
-            &[(Connectivity::Six, Axis::X), (Connectivity::Six, Axis::Z), (Connectivity::TwentySix, Axis::X), (Connectivity::TwentySix, Axis::Z)]
+            &[
+                (Connectivity::Six, Axis::X),
+                (Connectivity::Six, Axis::Z),
+                (Connectivity::TwentySix, Axis::X),
+                (Connectivity::TwentySix, Axis::Z),
+            ]
         };
         for &(conn, axis) in runs {
             n += check_all(&s.volume, 0.0, conn, axis, &s.name, &mut failures);
         }
     }
     assert!(n > 400, "{n} handles checked");
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -102,11 +137,23 @@ fn every_loop_of_random_volumes_is_a_real_loop() {
         let vol = common::volume_from(dims, &v);
         let iso = common::quantile(&v, 0.4 + 0.2 * rng.f64());
         for conn in BOTH {
-            n += check_all(&vol, iso, conn, [Axis::X, Axis::Y, Axis::Z][round % 3], &format!("noise {round}"), &mut failures);
+            n += check_all(
+                &vol,
+                iso,
+                conn,
+                [Axis::X, Axis::Y, Axis::Z][round % 3],
+                &format!("noise {round}"),
+                &mut failures,
+            );
         }
     }
     assert!(n > 100, "{n} handles checked");
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 /// Tori of major radius R and minor radius r: one loop goes round the tube (≈ 2πr), the other
@@ -116,14 +163,26 @@ fn every_loop_of_random_volumes_is_a_real_loop() {
 fn torus_loop_lengths() {
     let mut report = Vec::new();
     for (big, small) in [(8.0, 3.0), (10.0, 2.5), (12.0, 4.0), (7.0, 1.8)] {
-        for (name, ax, ay) in [("upright", 0.0, 0.0), ("wheel", FRAC_PI_2, 0.0), ("tilted 30° x", FRAC_PI_6, 0.0), ("tilted 45° y", 0.0, FRAC_PI_4)] {
+        for (name, ax, ay) in [
+            ("upright", 0.0, 0.0),
+            ("wheel", FRAC_PI_2, 0.0),
+            ("tilted 30° x", FRAC_PI_6, 0.0),
+            ("tilted 45° y", 0.0, FRAC_PI_4),
+        ] {
             let n = (2.0 * (big + small) + 6.0) as usize;
             let vol = shapes::torus(n, big, small, ax, ay, 0.0);
             for conn in BOTH {
                 let (_, r, loops) = analyze(&vol, 0.0, conn, Axis::Z);
                 assert_eq!(r.handles.len(), 1);
-                let (a, b) = (loops[0].reeb.as_ref().unwrap(), loops[0].cross.as_ref().unwrap());
-                let (girth, hole) = if a.encloses == Encloses::Material { (a, b) } else { (b, a) };
+                let (a, b) = (
+                    loops[0].reeb.as_ref().unwrap(),
+                    loops[0].cross.as_ref().unwrap(),
+                );
+                let (girth, hole) = if a.encloses == Encloses::Material {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
                 let (eg, eh) = (TAU * small, TAU * (big - small));
                 report.push(format!(
                     "R {big} r {small} {name:<13} conn {:>2}: girth {:>3} edges {:5.1} mm (2πr {eg:5.1}), hole {:>3} edges {:5.1} mm (2π(R-r) {eh:5.1})",
@@ -135,13 +194,33 @@ fn torus_loop_lengths() {
                 ));
                 // The loop round the tube is the shortest such loop.
                 let g = girth.length as f64 / eg;
-                assert!((1.0..1.45).contains(&g), "R {big} r {small} {name}: girth {} edges vs 2πr {eg:.1}", girth.length);
-                assert!((0.95..1.25).contains(&(girth.length_mm / eg)), "girth {:.1} mm vs {eg:.1}", girth.length_mm);
+                assert!(
+                    (1.0..1.45).contains(&g),
+                    "R {big} r {small} {name}: girth {} edges vs 2πr {eg:.1}",
+                    girth.length
+                );
+                assert!(
+                    (0.95..1.25).contains(&(girth.length_mm / eg)),
+                    "girth {:.1} mm vs {eg:.1}",
+                    girth.length_mm
+                );
                 // Round the hole: the cross loop is shortest; a Reeb loop must follow the
                 // cycle's ribbons, which on a tilted torus is a longer, non-planar way round.
-                let limit = if a.encloses == Encloses::Void && name.starts_with("tilted") { 1.75 } else { 1.4 };
-                assert!((1.0..limit).contains(&(hole.length as f64 / eh)), "R {big} r {small} {name}: hole {} edges vs 2π(R-r) {eh:.1}", hole.length);
-                assert!((0.95..limit).contains(&(hole.length_mm / eh)), "hole {:.1} mm vs {eh:.1}", hole.length_mm);
+                let limit = if a.encloses == Encloses::Void && name.starts_with("tilted") {
+                    1.75
+                } else {
+                    1.4
+                };
+                assert!(
+                    (1.0..limit).contains(&(hole.length as f64 / eh)),
+                    "R {big} r {small} {name}: hole {} edges vs 2π(R-r) {eh:.1}",
+                    hole.length
+                );
+                assert!(
+                    (0.95..limit).contains(&(hole.length_mm / eh)),
+                    "hole {:.1} mm vs {eh:.1}",
+                    hole.length_mm
+                );
                 // Upright, the Reeb loop goes round the tube; on a wheel, round the hole.
                 if name == "upright" {
                     assert_eq!(a.encloses, Encloses::Material);
@@ -162,7 +241,10 @@ fn a_one_voxel_bridge_has_size_4() {
     // A U of 3×3 bars, its two ends joined by one voxel.
     let vol = InMemoryVolume::from_mask([16, 12, 7], |x, y, z| {
         let bar = (2..=4).contains(&z);
-        let u = bar && ((2..=4).contains(&y) && (2..=13).contains(&x) || (2..=4).contains(&x) && (2..=9).contains(&y) || (11..=13).contains(&x) && (2..=9).contains(&y));
+        let u = bar
+            && ((2..=4).contains(&y) && (2..=13).contains(&x)
+                || (2..=4).contains(&x) && (2..=9).contains(&y)
+                || (11..=13).contains(&x) && (2..=9).contains(&y));
         let bridge = z == 3 && y == 9 && (5..=10).contains(&x) && x == 7;
         let arm = z == 3 && y == 9 && ((5..=6).contains(&x) || (8..=10).contains(&x));
         u || bridge || arm
@@ -170,8 +252,21 @@ fn a_one_voxel_bridge_has_size_4() {
     for conn in BOTH {
         for axis in [Axis::X, Axis::Y, Axis::Z] {
             let (_, r, loops) = analyze(&vol, 0.5, conn, axis);
-            assert_eq!(r.handles.len(), 1, "conn {} axis {}", conn.number(), axis.name());
-            assert_eq!(loops[0].size(), Some(4), "conn {} axis {}: {:?}", conn.number(), axis.name(), loops[0].reeb.as_ref().map(|l| l.length));
+            assert_eq!(
+                r.handles.len(),
+                1,
+                "conn {} axis {}",
+                conn.number(),
+                axis.name()
+            );
+            assert_eq!(
+                loops[0].size(),
+                Some(4),
+                "conn {} axis {}: {:?}",
+                conn.number(),
+                axis.name(),
+                loops[0].reeb.as_ref().map(|l| l.length)
+            );
             assert_eq!(loops[0].smallest().unwrap().encloses, Encloses::Material);
         }
     }

@@ -14,12 +14,12 @@
 
 pub mod search;
 
-use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
 use crate::surface::{PieceRef, Vertex};
+use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
-use search::{shortest_odd_loop, Everywhere, FastMap, Graph, InBox, PieceSet};
+use search::{shortest_odd_loop, Everywhere, FastMap, Graph, InBox, PieceSet, Region};
 
 /// What a loop's spanning disk would pass through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -53,6 +53,24 @@ pub struct HandleLoops {
 }
 
 impl HandleLoops {
+    /// Voxel bounds of the loops' points (original coordinates), if any loop was found.
+    pub fn bbox(&self) -> Option<crate::topology::genus::BBox> {
+        let mut b = crate::topology::genus::BBox::EMPTY;
+        let mut any = false;
+        for l in self.reeb.iter().chain(self.cross.iter()) {
+            for p in &l.points {
+                b.include([
+                    p[0].floor() as i64,
+                    p[1].floor() as i64,
+                    p[2].floor() as i64,
+                ]);
+                b.include([p[0].ceil() as i64, p[1].ceil() as i64, p[2].ceil() as i64]);
+                any = true;
+            }
+        }
+        any.then_some(b)
+    }
+
     /// The smaller loop length, or `None` if neither loop was found within the limits.
     pub fn size(&self) -> Option<usize> {
         match (&self.reeb, &self.cross) {
@@ -100,35 +118,64 @@ pub fn map_vertex(v: Vertex, from: &Frame, to: &Frame) -> Vertex {
             local_axis = k as u8;
         }
     }
-    Vertex { p, axis: local_axis }
+    Vertex {
+        p,
+        axis: local_axis,
+    }
 }
 
-/// Pieces of the ribbons of a top-level Reeb cycle.
-fn cycle_region(vol: &MaskVolume, h: &Handle, conn: Connectivity) -> PieceSet {
-    let table = cases(conn);
-    let mut by_slice: FastMap<i64, Vec<u32>> = FastMap::default();
-    for n in &h.located.cycle {
-        if n.kind == NodeKind::Ribbon {
-            by_slice.entry(n.level as i64).or_default().push(n.local);
+/// Surfels of the swept volume's slices, built when first needed and kept for later handles.
+pub struct SliceCache<'a> {
+    vol: &'a MaskVolume,
+    conn: Connectivity,
+    slices: FastMap<i64, SliceSurfels>,
+}
+
+impl<'a> SliceCache<'a> {
+    pub fn new(vol: &'a MaskVolume, conn: Connectivity) -> SliceCache<'a> {
+        SliceCache {
+            vol,
+            conn,
+            slices: FastMap::default(),
         }
     }
-    let mut set = PieceSet::default();
-    for (&s, ribbons) in &by_slice {
-        let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
-        for cube in &sl.cubes {
-            let case = &table[cube.case as usize];
-            for k in 0..case.n_pieces as usize {
-                if ribbons.contains(&sl.piece_ribbon[cube.first_piece as usize + k]) {
-                    set.insert([cube.i as i64 - 1, cube.j as i64 - 1, s], k as u8);
-                }
-            }
+
+    fn ensure(&mut self, s: i64) {
+        let (vol, conn) = (self.vol, self.conn);
+        self.slices
+            .entry(s)
+            .or_insert_with(|| SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn));
+    }
+}
+
+/// The ribbons of a top-level Reeb cycle, as a region: a piece belongs when its slice's ribbon
+/// label is one of the cycle's ribbons in that slice.
+struct CycleRegion<'c> {
+    cache: &'c SliceCache<'c>,
+    ribbons: FastMap<i64, Vec<u32>>,
+}
+
+impl Region for CycleRegion<'_> {
+    fn allows(&self, p: &PieceRef) -> bool {
+        let s = p.cube[2];
+        let (Some(ribbons), Some(sl)) = (self.ribbons.get(&s), self.cache.slices.get(&s)) else {
+            return false;
+        };
+        match sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32) {
+            Some(q) => ribbons
+                .contains(&sl.piece_ribbon[sl.cubes[q].first_piece as usize + p.index as usize]),
+            None => false,
         }
     }
-    set
 }
 
 /// Pieces of the given ribbons of a mini-volume's cycle, within the original slice.
-fn mini_cycle_region(mini: &MaskVolume, h: &Handle, allowed: ([i64; 3], [i64; 3]), conn: Connectivity) -> PieceSet {
+fn mini_cycle_region(
+    mini: &MaskVolume,
+    h: &Handle,
+    allowed: ([i64; 3], [i64; 3]),
+    conn: Connectivity,
+) -> PieceSet {
     let table = cases(conn);
     let mut set = PieceSet::default();
     let mut by_slice: FastMap<i64, Vec<u32>> = FastMap::default();
@@ -156,14 +203,25 @@ fn mini_cycle_region(mini: &MaskVolume, h: &Handle, allowed: ([i64; 3], [i64; 3]
 }
 
 /// The Reeb loop of a handle, in the swept volume's local coordinates. `top` is the surface
-/// graph of the swept volume (shared between searches).
-pub fn reeb_loop(top: &mut Graph, h: &Handle, conn: Connectivity, limit: usize) -> Option<Vec<Vertex>> {
+/// graph of the swept volume and `cache` its slices' surfels (both shared between handles).
+pub fn reeb_loop(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    h: &Handle,
+    conn: Connectivity,
+    limit: usize,
+) -> Option<Vec<Vertex>> {
     let table = cases(conn);
     let vol = top.vol;
     let l = &h.located;
     match &l.volume {
         CycleVolume::Top => {
-            let region = cycle_region(vol, h, conn);
+            let mut ribbons: FastMap<i64, Vec<u32>> = FastMap::default();
+            for n in l.cycle.iter().filter(|n| n.kind == NodeKind::Ribbon) {
+                ribbons.entry(n.level as i64).or_default().push(n.local);
+                cache.ensure(n.level as i64);
+            }
+            let region = CycleRegion { cache, ribbons };
             shortest_odd_loop(top, &l.cut, &region, limit)
         }
         CycleVolume::Mini(mini) => {
@@ -184,7 +242,12 @@ pub fn reeb_loop(top: &mut Graph, h: &Handle, conn: Connectivity, limit: usize) 
                 };
                 shortest_odd_loop(&mut g, &l.cut, &region, limit)
             })?;
-            Some(found.into_iter().map(|v| map_vertex(v, &mini.frame, &vol.frame)).collect())
+            Some(
+                found
+                    .into_iter()
+                    .map(|v| map_vertex(v, &mini.frame, &vol.frame))
+                    .collect(),
+            )
         }
     }
 }
@@ -195,16 +258,28 @@ pub fn cross_loop(top: &mut Graph, reeb: &[Vertex], limit: usize) -> Option<Vec<
 }
 
 /// Measures both loops of a handle of the volume whose surface graph is `top`.
-pub fn measure(top: &mut Graph, h: &Handle, conn: Connectivity, affine: &Affine, limits: Limits) -> HandleLoops {
+pub fn measure(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    h: &Handle,
+    conn: Connectivity,
+    affine: &Affine,
+    limits: Limits,
+) -> HandleLoops {
     let vol = top.vol;
-    let reeb = reeb_loop(top, h, conn, limits.reeb);
+    let reeb = reeb_loop(top, cache, h, conn, limits.reeb);
     let cross = reeb.as_ref().and_then(|r| cross_loop(top, r, limits.cross));
     let describe = |lp: &[Vertex], partner: Option<&[Vertex]>| -> Loop {
-        let points: Vec<[f64; 3]> = lp.iter().map(|v| vol.frame.to_original(v.midpoint())).collect();
+        let points: Vec<[f64; 3]> = lp
+            .iter()
+            .map(|v| vol.frame.to_original(v.midpoint()))
+            .collect();
         Loop {
             length: lp.len(),
             length_mm: polyline_mm(&points, affine),
-            encloses: partner.map(|x| encloses(vol, lp, x)).unwrap_or(Encloses::Void),
+            encloses: partner
+                .map(|x| encloses(vol, lp, x))
+                .unwrap_or(Encloses::Void),
             vertices: lp.to_vec(),
             points,
         }
@@ -215,7 +290,10 @@ pub fn measure(top: &mut Graph, h: &Handle, conn: Connectivity, affine: &Affine,
     // other loop decides.
     if let (Some(a), Some(b)) = (&mut r, &mut c) {
         if a.encloses == b.encloses {
-            let (la, lb) = (link_strength(vol, &a.vertices, &b.vertices), link_strength(vol, &b.vertices, &a.vertices));
+            let (la, lb) = (
+                link_strength(vol, &a.vertices, &b.vertices),
+                link_strength(vol, &b.vertices, &a.vertices),
+            );
             if la >= lb {
                 b.encloses = opposite(a.encloses);
             } else {
@@ -289,7 +367,13 @@ pub fn encloses(vol: &MaskVolume, lp: &[Vertex], partner: &[Vertex]) -> Encloses
 /// pairs divided by 4π (Klenin & Langowski's formula).
 pub fn linking_number(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let cross = |p: [f64; 3], q: [f64; 3]| [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
+    let cross = |p: [f64; 3], q: [f64; 3]| {
+        [
+            p[1] * q[2] - p[2] * q[1],
+            p[2] * q[0] - p[0] * q[2],
+            p[0] * q[1] - p[1] * q[0],
+        ]
+    };
     let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     let unit = |p: [f64; 3]| {
         let l = dot(p, p).sqrt();
@@ -309,12 +393,56 @@ pub fn linking_number(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
             let n2 = unit(cross(r14, r24));
             let n3 = unit(cross(r24, r23));
             let n4 = unit(cross(r23, r13));
-            let s = dot(n1, n2).clamp(-1.0, 1.0).asin() + dot(n2, n3).clamp(-1.0, 1.0).asin() + dot(n3, n4).clamp(-1.0, 1.0).asin() + dot(n4, n1).clamp(-1.0, 1.0).asin();
+            let s = dot(n1, n2).clamp(-1.0, 1.0).asin()
+                + dot(n2, n3).clamp(-1.0, 1.0).asin()
+                + dot(n3, n4).clamp(-1.0, 1.0).asin()
+                + dot(n4, n1).clamp(-1.0, 1.0).asin();
             let sign = dot(cross(sub(p4, p3), sub(p2, p1)), r13);
-            total += if sign > 0.0 { s } else if sign < 0.0 { -s } else { 0.0 };
+            total += if sign > 0.0 {
+                s
+            } else if sign < 0.0 {
+                -s
+            } else {
+                0.0
+            };
         }
     }
     total / (4.0 * std::f64::consts::PI)
+}
+
+/// Vertices a worker's surface graph keeps between handles before starting afresh.
+const GRAPH_CACHE_LIMIT: usize = 1 << 21;
+
+/// Measures every handle of a sweep's report, in parallel (each worker keeps its own cache of
+/// the surface graph).
+pub fn measure_all(
+    vol: &MaskVolume,
+    handles: &[Handle],
+    conn: Connectivity,
+    affine: &Affine,
+    limits: Limits,
+    progress: &dyn crate::progress::Progress,
+) -> Vec<HandleLoops> {
+    use rayon::prelude::*;
+    let table = cases(conn);
+    progress.start("loops", handles.len() as u64);
+    let out = handles
+        .par_iter()
+        .map_init(
+            || (Graph::new(vol, table), SliceCache::new(vol, conn)),
+            |(g, cache), h| {
+                // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
+                if g.len() > GRAPH_CACHE_LIMIT {
+                    g.clear();
+                }
+                let l = measure(g, cache, h, conn, affine, limits);
+                progress.advance(1);
+                l
+            },
+        )
+        .collect();
+    progress.finish();
+    out
 }
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-//! Shortest loops that cross a given curve an odd number of times.
+//! Shortest loops that cross given curves an odd (or even) number of times.
 //!
 //! Both characteristic loops of a handle are found this way (paper §2.2): the Reeb loop crosses
 //! one contour of the handle's Reeb cycle once, the cross loop crosses the Reeb loop once. The
@@ -14,11 +14,14 @@
 //!      ----x-------x-------x----->  K
 //!              right of K
 //! ```
+//!
+//! States live in dense arrays indexed by the graph's vertex numbers (one bit of parity per
+//! curve), reset by generation stamps, so a search costs what it visits and nothing more.
 
-use crate::surface::{around, Around, PieceRef, Vertex};
+use crate::surface::{around, Around, PieceRef, Vertex, MAX_DEGREE};
 use crate::sweep::MaskVolume;
 use crate::topology::cases::Case;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::hash::{BuildHasherDefault, Hasher};
 
 /// A fast hasher for small integer keys (vertices packed into a u64).
@@ -41,20 +44,26 @@ impl Hasher for FastHasher {
 
 pub type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
 
-/// Packs a vertex (coordinates in -1 ..= 2^20 - 2) into a u64.
+/// Packs a vertex into a u64 ([`Vertex::key`]).
 #[inline]
 pub fn key(v: Vertex) -> u64 {
-    let c = |x: i64| (x + 1) as u64 & 0xF_FFFF;
-    c(v.p[0]) | (c(v.p[1]) << 20) | (c(v.p[2]) << 40) | ((v.axis as u64) << 60)
+    v.key()
 }
 
-/// Neighbourhoods, computed once per vertex and kept for later searches on the same volume.
+/// The surface graph of one volume: each vertex's neighbourhood is computed once and numbered,
+/// and kept for later searches; the numbers index the searches' dense state arrays.
 pub struct Graph<'a> {
     pub vol: &'a MaskVolume,
     pub table: &'a [Case; 256],
     index: FastMap<u64, u32>,
     arena: Vec<Around>,
+    verts: Vec<Vertex>,
+    /// Numbers of each vertex's neighbours, resolved on first use (`UNRESOLVED` until then).
+    nbr_num: Vec<[u32; MAX_DEGREE]>,
+    scratch: Scratch,
 }
+
+const UNRESOLVED: u32 = u32::MAX - 1;
 
 /// Marks a vertex that is not on the surface.
 const ABSENT: u32 = u32::MAX;
@@ -66,11 +75,14 @@ impl<'a> Graph<'a> {
             table,
             index: FastMap::default(),
             arena: Vec::new(),
+            verts: Vec::new(),
+            nbr_num: Vec::new(),
+            scratch: Scratch::default(),
         }
     }
 
-    /// Index of `v`'s neighbourhood in the cache (computing it the first time), or `None` if no
-    /// surface crosses that edge.
+    /// Number of `v` (computing its neighbourhood the first time), or `None` if no surface
+    /// crosses that edge.
     #[inline]
     pub fn index(&mut self, v: Vertex) -> Option<u32> {
         let k = key(v);
@@ -80,6 +92,8 @@ impl<'a> Graph<'a> {
         let i = match around(self.vol, self.table, v) {
             Some(a) => {
                 self.arena.push(a);
+                self.verts.push(v);
+                self.nbr_num.push([UNRESOLVED; MAX_DEGREE]);
                 self.arena.len() as u32 - 1
             }
             None => ABSENT,
@@ -93,14 +107,75 @@ impl<'a> Graph<'a> {
         &self.arena[i as usize]
     }
 
+    #[inline]
+    pub fn vertex(&self, i: u32) -> Vertex {
+        self.verts[i as usize]
+    }
+
+    /// Vertices numbered so far.
+    pub fn len(&self) -> usize {
+        self.arena.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.arena.is_empty()
+    }
+
+    /// Forgets every neighbourhood (to bound memory between searches).
+    pub fn clear(&mut self) {
+        self.index.clear();
+        self.arena.clear();
+        self.verts.clear();
+        self.nbr_num.clear();
+        self.scratch = Scratch::default();
+    }
+
     /// A copy of `v`'s neighbourhood.
     pub fn around(&mut self, v: Vertex) -> Option<Around> {
         self.index(v).map(|i| self.arena[i as usize])
     }
+
+    /// Number of the `k`-th neighbour of vertex `i`.
+    #[inline]
+    fn neighbour(&mut self, i: u32, k: usize) -> Option<u32> {
+        let cached = self.nbr_num[i as usize][k];
+        if cached != UNRESOLVED {
+            return (cached != ABSENT).then_some(cached);
+        }
+        let w = self.arena[i as usize].nbr(k);
+        let n = self.index(w);
+        self.nbr_num[i as usize][k] = n.unwrap_or(ABSENT);
+        n
+    }
+
+    /// Bit k set: the edge to neighbour k is usable in the region (cached per region
+    /// generation, so the many searches of one loop ask the region once per vertex).
+    #[inline]
+    fn usable_mask(&mut self, region: &dyn Region, i: u32) -> u16 {
+        let sc = &mut self.scratch;
+        if sc.usable_stamp.len() <= i as usize {
+            let n = (i as usize + 1).next_power_of_two();
+            sc.usable_stamp.resize(n, 0);
+            sc.usable_mask.resize(n, 0);
+        }
+        if sc.usable_stamp[i as usize] == sc.region_generation {
+            return sc.usable_mask[i as usize];
+        }
+        let a = &self.arena[i as usize];
+        let mut m = 0u16;
+        for k in 0..a.n {
+            if usable(region, a, k) {
+                m |= 1 << k;
+            }
+        }
+        sc.usable_stamp[i as usize] = sc.region_generation;
+        sc.usable_mask[i as usize] = m;
+        m
+    }
 }
 
 /// Which pieces the loop may use. A segment is usable when a piece on either side of it is (so
-/// a region's boundary curves are usable), a vertex when one of its four pieces is.
+/// a region's boundary curves are usable), a vertex when one of its pieces is.
 pub trait Region {
     fn allows(&self, p: &PieceRef) -> bool;
 }
@@ -142,26 +217,211 @@ impl Region for PieceSet {
     }
 }
 
-/// Marks, for each vertex of a closed curve `K`, which of its neighbours lie on its left
-/// (bit k set: neighbour k). `K` is given as its vertices in order.
-fn left_marks(g: &mut Graph, cut: &[Vertex]) -> Option<FastMap<u64, u16>> {
-    let n = cut.len();
-    let mut marks = FastMap::default();
-    for i in 0..n {
-        let (prev, v, next) = (cut[(i + n - 1) % n], cut[i], cut[(i + 1) % n]);
-        let a = g.around(v)?;
-        let ip = a.position(prev)?;
-        let inx = a.position(next)?;
-        // Left: strictly after `prev`, clockwise, up to `next`.
-        let mut m = 0u16;
-        let mut k = (ip + 1) % a.n;
-        while k != inx {
-            m |= 1 << k;
-            k = (k + 1) % a.n;
+/// Most curves a search can take parities against.
+const MAX_CUTS: usize = 8;
+
+/// States (vertex, parity) the multi-source phase of one search may visit: enough to close a
+/// loop around any handle of a large volume.
+pub const FIRST_BUDGET: usize = 1 << 21;
+
+/// States the exact phase (one search per vertex of the cut) may visit before settling for the
+/// best loop so far. Short loops, the ones that matter for simplification, are exact well within
+/// it; loops of large handles (beyond about 50 edges) may come out a few edges longer than the
+/// shortest.
+pub const EXACT_BUDGET: usize = 1 << 18;
+
+/// Reusable search state: per (vertex, parity) a stamp, a distance, a predecessor state and a
+/// source; per vertex the curves' marks.
+#[derive(Default)]
+struct Scratch {
+    generation: u32,
+    mark_generation: u32,
+    stamp: Vec<u32>,
+    dist: Vec<u32>,
+    pred: Vec<u32>,
+    source: Vec<u32>,
+    /// Per vertex: stamp of the current curves, and the marks of each curve (bit k: neighbour k
+    /// is on that curve's left).
+    mark_stamp: Vec<u32>,
+    marks: Vec<[u16; MAX_CUTS]>,
+    /// Per vertex: which edges the current region allows.
+    region_generation: u32,
+    usable_stamp: Vec<u32>,
+    usable_mask: Vec<u16>,
+}
+
+impl Scratch {
+    /// A fresh stamp for the state arrays.
+    fn next_generation(&mut self) -> u32 {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.generation = 1;
         }
-        *marks.entry(key(v)).or_insert(0) |= m;
+        self.generation
     }
-    Some(marks)
+
+    /// A new region: forget which edges were usable.
+    fn next_region(&mut self) {
+        self.region_generation = self.region_generation.wrapping_add(1);
+        if self.region_generation == 0 {
+            self.usable_stamp.iter_mut().for_each(|s| *s = 0);
+            self.region_generation = 1;
+        }
+    }
+
+    /// A fresh stamp for the marks of a new set of curves.
+    fn next_mark_generation(&mut self) -> u32 {
+        self.mark_generation = self.mark_generation.wrapping_add(1);
+        if self.mark_generation == 0 {
+            self.mark_stamp.iter_mut().for_each(|s| *s = 0);
+            self.mark_generation = 1;
+        }
+        self.mark_generation
+    }
+
+    fn ensure(&mut self, states: usize, vertices: usize) {
+        if self.stamp.len() < states {
+            let n = states.next_power_of_two();
+            self.stamp.resize(n, 0);
+            self.dist.resize(n, 0);
+            self.pred.resize(n, 0);
+            self.source.resize(n, 0);
+        }
+        if self.mark_stamp.len() < vertices {
+            let n = vertices.next_power_of_two();
+            self.mark_stamp.resize(n, 0);
+            self.marks.resize(n, [0; MAX_CUTS]);
+        }
+    }
+}
+
+/// The curves of one search: `bits` parity bits, state = (vertex number << bits) | parity. Their
+/// marks are in the graph's scratch, stamped `mark_generation`.
+struct Curves {
+    bits: u32,
+    mark_generation: u32,
+}
+
+impl Curves {
+    /// Marks, for each vertex of each closed curve, which of its neighbours lie on its left.
+    fn new(g: &mut Graph, cut: &[Vertex], even: &[&[Vertex]]) -> Option<Curves> {
+        let all: Vec<&[Vertex]> = std::iter::once(cut).chain(even.iter().copied()).collect();
+        if all.len() > MAX_CUTS {
+            return None;
+        }
+        // Number every vertex first (numbering may grow the arena).
+        let mut nums: Vec<Vec<u32>> = Vec::with_capacity(all.len());
+        for c in &all {
+            nums.push(
+                c.iter()
+                    .map(|&v| g.index(v))
+                    .collect::<Option<Vec<u32>>>()?,
+            );
+        }
+        let gen = g.scratch.next_mark_generation();
+        let n = g.arena.len();
+        g.scratch.ensure(0, n);
+        for (c, (curve, num)) in all.iter().zip(&nums).enumerate() {
+            let len = curve.len();
+            for i in 0..len {
+                let (prev, next) = (curve[(i + len - 1) % len], curve[(i + 1) % len]);
+                let vi = num[i];
+                let a = g.at(vi);
+                let ip = a.position(prev)?;
+                let inx = a.position(next)?;
+                // Left: strictly after `prev`, clockwise, up to `next`.
+                let mut m = 0u16;
+                let mut k = (ip + 1) % a.n;
+                while k != inx {
+                    m |= 1 << k;
+                    k = (k + 1) % a.n;
+                }
+                let sc = &mut g.scratch;
+                if sc.mark_stamp[vi as usize] != gen {
+                    sc.mark_stamp[vi as usize] = gen;
+                    sc.marks[vi as usize] = [0; MAX_CUTS];
+                }
+                sc.marks[vi as usize][c] |= m;
+            }
+        }
+        Some(Curves {
+            bits: all.len() as u32,
+            mark_generation: gen,
+        })
+    }
+
+    /// Parity flips (bit per curve) of the edge from vertex `vi` to its neighbour `k`, `wi`.
+    #[inline]
+    fn flip(&self, g: &Graph, vi: u32, k: usize, wi: u32) -> u32 {
+        let sc = &g.scratch;
+        let mut f = 0u32;
+        let v_on = sc.mark_stamp.get(vi as usize) == Some(&self.mark_generation);
+        let w_on = sc.mark_stamp.get(wi as usize) == Some(&self.mark_generation);
+        if !v_on && !w_on {
+            return 0;
+        }
+        let back = if w_on {
+            g.at(wi).position(g.vertex(vi))
+        } else {
+            None
+        };
+        for c in 0..self.bits as usize {
+            let mut b = v_on && (sc.marks[vi as usize][c] >> k) & 1 == 1;
+            if let Some(j) = back {
+                b ^= (sc.marks[wi as usize][c] >> j) & 1 == 1;
+            }
+            f |= (b as u32) << c;
+        }
+        f
+    }
+
+    /// Parity flips of the edge v–w (neighbours).
+    fn edge_flip(&self, g: &mut Graph, v: Vertex, w: Vertex) -> u32 {
+        let (Some(vi), Some(wi)) = (g.index(v), g.index(w)) else {
+            return 0;
+        };
+        let k = g.at(vi).position(w).unwrap_or(0);
+        self.flip(g, vi, k, wi)
+    }
+}
+
+/// Is the edge to neighbour `k` of `a` usable in the region?
+#[inline]
+fn usable(region: &dyn Region, a: &Around, k: usize) -> bool {
+    let (l, r) = a.sides(k);
+    region.allows(&l) || region.allows(&r)
+}
+
+/// Reduces a closed walk with parity `goal` to a simple cycle with the same parity: where a
+/// vertex repeats, the walk splits into two closed walks, one of which has the wanted parity
+/// and is shorter.
+fn simple_cycle(g: &mut Graph, curves: &Curves, mut walk: Vec<Vertex>, goal: u32) -> Vec<Vertex> {
+    loop {
+        let mut first: FastMap<u64, usize> = FastMap::default();
+        let mut split = None;
+        for (j, v) in walk.iter().enumerate() {
+            if let Some(&i) = first.get(&key(*v)) {
+                split = Some((i, j));
+                break;
+            }
+            first.insert(key(*v), j);
+        }
+        let Some((i, j)) = split else { return walk };
+        let inner: Vec<Vertex> = walk[i..j].to_vec();
+        let parity = |g: &mut Graph, w: &[Vertex]| {
+            (0..w.len()).fold(0u32, |p, k| {
+                p ^ curves.edge_flip(g, w[k], w[(k + 1) % w.len()])
+            })
+        };
+        walk = if parity(g, &inner) == goal {
+            inner
+        } else {
+            let mut outer = walk[j..].to_vec();
+            outer.extend_from_slice(&walk[..i]);
+            outer
+        };
+    }
 }
 
 /// The shortest loop (as its vertices in order) through the region that crosses `cut` an odd
@@ -175,110 +435,111 @@ pub fn shortest_odd_loop(
     shortest_loop_with_parities(g, cut, &[], region, limit)
 }
 
-/// Most curves a search can take parities against.
-const MAX_CUTS: usize = 16;
-
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
 /// `even` an even number of times, shorter than `limit` edges.
-pub fn shortest_loop_with_parities(g: &mut Graph, cut: &[Vertex], even: &[&[Vertex]], region: &dyn Region, limit: usize) -> Option<Vec<Vertex>> {
-    if cut.len() < 2 || even.len() + 1 > MAX_CUTS {
+///
+/// A first breadth-first search from all of `cut` at once gives a loop (a path that crosses,
+/// closed along `cut`) and so an upper bound; then one search per vertex of `cut`, each stopped
+/// at the best length so far, finds the shortest (within [`EXACT_BUDGET`]).
+pub fn shortest_loop_with_parities(
+    g: &mut Graph,
+    cut: &[Vertex],
+    even: &[&[Vertex]],
+    region: &dyn Region,
+    limit: usize,
+) -> Option<Vec<Vertex>> {
+    if cut.len() < 2 {
         return None;
     }
-    // Left marks of every curve; bit c of a state's parity is the crossings of curve c, mod 2.
-    let mut marks: Vec<FastMap<u64, u16>> = Vec::with_capacity(1 + even.len());
-    marks.push(left_marks(g, cut)?);
-    for c in even {
-        marks.push(left_marks(g, c)?);
-    }
+    let curves = Curves::new(g, cut, even)?;
+    g.scratch.next_region();
     let goal: u32 = 1;
     let mut best: Option<Vec<Vertex>> = None;
     let mut best_len = limit;
-    let mut seen: FastMap<(u64, u32), (u32, u64, u32)> = FastMap::default(); // -> (dist, pred key, pred parity)
-    let mut verts: FastMap<u64, Vertex> = FastMap::default();
-    let mut queue = std::collections::VecDeque::new();
     let mut sources: Vec<Vertex> = cut.to_vec();
-    sources.sort();
-    sources.dedup();
+    // Phase 1 (one curve only: closing along it must not change other parities).
+    if even.is_empty() {
+        if let Some((walk, start)) = multi_source(g, &curves, cut, region, limit) {
+            let walk = simple_cycle(g, &curves, walk, goal);
+            if walk.len() < best_len {
+                best_len = walk.len();
+                best = Some(walk);
+            }
+            // Search from the loop's own start first: it finds a loop no longer than the bound.
+            if let Some(p) = sources.iter().position(|&v| v == start) {
+                sources.swap(0, p);
+            }
+        }
+    }
+    let bits = curves.bits;
+    let mut budget = EXACT_BUDGET;
+    let mut tried: FastMap<u64, ()> = FastMap::default();
+    let mut queue: VecDeque<u32> = VecDeque::new();
     for &s in &sources {
-        let Some(si) = g.index(s) else { continue };
-        let sa = g.at(si);
-        if !sa.piece[..sa.n].iter().any(|p| region.allows(p)) {
+        if budget == 0 {
+            break;
+        }
+        if tried.insert(key(s), ()).is_some() {
             continue;
         }
-        seen.clear();
+        let Some(si) = g.index(s) else { continue };
+        if g.usable_mask(region, si) == 0 {
+            continue;
+        }
+        let gen = g.scratch.next_generation();
+        g.scratch.ensure((g.arena.len() + 1) << bits, 0);
+        let start = si << bits;
+        let target = (si << bits) | goal;
+        g.scratch.stamp[start as usize] = gen;
+        g.scratch.dist[start as usize] = 0;
+        g.scratch.pred[start as usize] = u32::MAX;
         queue.clear();
-        let ks = key(s);
-        seen.insert((ks, 0), (0, u64::MAX, 0));
-        verts.insert(ks, s);
-        queue.push_back((s, 0u32));
+        queue.push_back(start);
         let mut found = None;
-        'bfs: while let Some((v, par)) = queue.pop_front() {
-            let kv = key(v);
-            let d = seen[&(kv, par)].0;
-            if d as usize + 1 >= best_len {
+        'bfs: while let Some(st) = queue.pop_front() {
+            let d = g.scratch.dist[st as usize];
+            if d as usize + 1 >= best_len || budget == 0 {
                 break;
             }
-            let Some(vi) = g.index(v) else { continue };
-            let mut mv = [0u16; MAX_CUTS];
-            for (c, m) in marks.iter().enumerate() {
-                mv[c] = m.get(&kv).copied().unwrap_or(0);
-            }
-            let n = g.at(vi).n;
-            for k in 0..n {
-                // The edge v -> nbr[k] runs between piece[k-1] and piece[k].
-                let (w, (left, right)) = {
-                    let a = g.at(vi);
-                    (a.nbr[k], a.sides(k))
+            budget -= 1;
+            let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
+            let mask = g.usable_mask(region, vi);
+            for k in 0..g.at(vi).n {
+                if (mask >> k) & 1 == 0 {
+                    continue;
+                }
+                let Some(wi) = g.neighbour(vi, k) else {
+                    continue;
                 };
-                if !region.allows(&left) && !region.allows(&right) {
+                g.scratch
+                    .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+                let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
+                let sc = &mut g.scratch;
+                if sc.stamp[ns as usize] == gen {
                     continue;
                 }
-                let kw = key(w);
-                let mut flip = 0u32;
-                let mut back = None;
-                for (c, m) in marks.iter().enumerate() {
-                    let mut f = (mv[c] >> k) & 1 == 1;
-                    if let Some(&mw) = m.get(&kw) {
-                        // The same edge seen from w.
-                        if back.is_none() {
-                            back = g.index(w).and_then(|wi| g.at(wi).position(v));
-                        }
-                        if let Some(j) = back {
-                            f ^= (mw >> j) & 1 == 1;
-                        }
-                    }
-                    flip |= (f as u32) << c;
-                }
-                let np = par ^ flip;
-                if let std::collections::hash_map::Entry::Vacant(e) = seen.entry((kw, np)) {
-                    e.insert((d + 1, kv, par));
-                } else {
-                    continue;
-                }
-                verts.entry(kw).or_insert(w);
-                if kw == ks && np == goal {
+                sc.stamp[ns as usize] = gen;
+                sc.dist[ns as usize] = d + 1;
+                sc.pred[ns as usize] = st;
+                if ns == target {
                     found = Some(d + 1);
                     break 'bfs;
                 }
-                queue.push_back((w, np));
+                queue.push_back(ns);
             }
         }
         if let Some(len) = found {
             if (len as usize) < best_len {
                 // Walk back from (s, goal) to (s, 0).
                 let mut path = Vec::with_capacity(len as usize);
-                let (mut k, mut p) = (ks, goal);
-                loop {
-                    let (_, pk, pp) = seen[&(k, p)];
-                    if pk == u64::MAX {
-                        break;
-                    }
-                    path.push(verts[&k]);
-                    k = pk;
-                    p = pp;
+                let mut st = target;
+                while st != start {
+                    path.push(g.vertex(st >> bits));
+                    st = g.scratch.pred[st as usize];
                 }
                 path.reverse();
-                best_len = len as usize;
+                let path = simple_cycle(g, &curves, path, goal);
+                best_len = path.len();
                 best = Some(path);
             }
         }
@@ -286,41 +547,137 @@ pub fn shortest_loop_with_parities(g: &mut Graph, cut: &[Vertex], even: &[&[Vert
     best
 }
 
-/// Is the loop non-separating on the surface (within the region)? It is exactly when, starting
-/// on one side of it at one of its vertices, the other side of that vertex can be reached
-/// without crossing it: one breadth-first search of the double cover.
-pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bool {
-    let Some(marks) = left_marks(g, lp) else { return false };
-    let s = lp[0];
-    let ks = key(s);
-    let mut seen: FastMap<(u64, bool), ()> = FastMap::default();
-    let mut stack = vec![(s, false)];
-    seen.insert((ks, false), ());
-    while let Some((v, par)) = stack.pop() {
-        let kv = key(v);
-        let Some(vi) = g.index(v) else { continue };
-        let mv = marks.get(&kv).copied().unwrap_or(0);
+/// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
+/// Reaching a vertex of `cut` with odd parity closes a loop: the path, then back along `cut` to
+/// where it started. Returns the shortest such walk (not yet simple) and its start.
+fn multi_source(
+    g: &mut Graph,
+    curves: &Curves,
+    cut: &[Vertex],
+    region: &dyn Region,
+    limit: usize,
+) -> Option<(Vec<Vertex>, Vertex)> {
+    let n = cut.len();
+    // Position on the cut of each of its vertices (by number).
+    let nums: Vec<u32> = cut.iter().map(|&v| g.index(v)).collect::<Option<_>>()?;
+    let pos: FastMap<u32, usize> = nums.iter().enumerate().map(|(i, &v)| (v, i)).collect();
+    let gen = g.scratch.next_generation();
+    g.scratch.ensure((g.arena.len() + 1) << 1, 0);
+    let mut queue: VecDeque<u32> = VecDeque::new();
+    for (i, &vi) in nums.iter().enumerate() {
+        let st = vi << 1;
+        let sc = &mut g.scratch;
+        if sc.stamp[st as usize] != gen {
+            sc.stamp[st as usize] = gen;
+            sc.dist[st as usize] = 0;
+            sc.pred[st as usize] = u32::MAX;
+            sc.source[st as usize] = i as u32;
+            queue.push_back(st);
+        }
+    }
+    let along = |a: usize, b: usize| {
+        let d = a.abs_diff(b);
+        d.min(n - d)
+    };
+    let mut best: Option<(usize, u32, usize)> = None; // (length, end state, end position)
+    let mut budget = FIRST_BUDGET;
+    while let Some(st) = queue.pop_front() {
+        let (d, src) = (g.scratch.dist[st as usize], g.scratch.source[st as usize]);
+        if best.is_some_and(|b| d as usize + 1 >= b.0) || d as usize + 1 >= limit || budget == 0 {
+            break;
+        }
+        budget -= 1;
+        let (vi, par) = (st >> 1, st & 1);
+        let mask = g.usable_mask(region, vi);
         for k in 0..g.at(vi).n {
-            let (w, (left, right)) = {
-                let a = g.at(vi);
-                (a.nbr[k], a.sides(k))
-            };
-            if !region.allows(&left) && !region.allows(&right) {
+            if (mask >> k) & 1 == 0 {
                 continue;
             }
-            let kw = key(w);
-            let mut flip = (mv >> k) & 1 == 1;
-            if let Some(&mw) = marks.get(&kw) {
-                if let Some(j) = g.index(w).and_then(|wi| g.at(wi).position(v)) {
-                    flip ^= (mw >> j) & 1 == 1;
+            let Some(wi) = g.neighbour(vi, k) else {
+                continue;
+            };
+            g.scratch
+                .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+            let np = par ^ curves.flip(g, vi, k, wi);
+            let ns = (wi << 1) | np;
+            let sc = &mut g.scratch;
+            if sc.stamp[ns as usize] == gen {
+                continue;
+            }
+            sc.stamp[ns as usize] = gen;
+            sc.dist[ns as usize] = d + 1;
+            sc.pred[ns as usize] = st;
+            sc.source[ns as usize] = src;
+            if np == 1 {
+                if let Some(&j) = pos.get(&wi) {
+                    let total = d as usize + 1 + along(src as usize, j);
+                    if best.is_none_or(|b| total < b.0) {
+                        best = Some((total, ns, j));
+                    }
                 }
             }
-            let np = par ^ flip;
-            if kw == ks && np {
+            queue.push_back(ns);
+        }
+    }
+    let (_, end, j) = best?;
+    let src = g.scratch.source[end as usize] as usize;
+    // The path from the source to the end…
+    let mut path = Vec::new();
+    let mut st = end;
+    while st != u32::MAX {
+        path.push(g.vertex(st >> 1));
+        st = g.scratch.pred[st as usize];
+    }
+    path.reverse(); // source … end
+                    // …then along the cut from the end back to the source (excluding both).
+    let forward = (src + n - j) % n; // steps from j forward to src
+    let step: isize = if forward <= n - forward { 1 } else { -1 };
+    let mut i = j as isize;
+    loop {
+        i = (i + step).rem_euclid(n as isize);
+        if i as usize == src {
+            break;
+        }
+        path.push(cut[i as usize]);
+    }
+    Some((path, cut[src]))
+}
+
+/// Is the loop non-separating on the surface (within the region)? It is exactly when, starting
+/// on one side of it at one of its vertices, the other side of that vertex can be reached
+/// without crossing it: one search of the double cover.
+pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bool {
+    let Some(curves) = Curves::new(g, lp, &[]) else {
+        return false;
+    };
+    g.scratch.next_region();
+    let Some(si) = g.index(lp[0]) else {
+        return false;
+    };
+    let gen = g.scratch.next_generation();
+    g.scratch.ensure((g.arena.len() + 1) << 1, 0);
+    let (start, target) = (si << 1, (si << 1) | 1);
+    g.scratch.stamp[start as usize] = gen;
+    let mut stack = vec![start];
+    while let Some(st) = stack.pop() {
+        let (vi, par) = (st >> 1, st & 1);
+        let mask = g.usable_mask(region, vi);
+        for k in 0..g.at(vi).n {
+            if (mask >> k) & 1 == 0 {
+                continue;
+            }
+            let Some(wi) = g.neighbour(vi, k) else {
+                continue;
+            };
+            g.scratch
+                .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+            let ns = (wi << 1) | (par ^ curves.flip(g, vi, k, wi));
+            if ns == target {
                 return true;
             }
-            if seen.insert((kw, np), ()).is_none() {
-                stack.push((w, np));
+            if g.scratch.stamp[ns as usize] != gen {
+                g.scratch.stamp[ns as usize] = gen;
+                stack.push(ns);
             }
         }
     }
@@ -366,7 +723,7 @@ mod tests {
                 loop {
                     let a = g.around(cur).unwrap();
                     let next = (0..a.n)
-                        .map(|k| a.nbr[k])
+                        .map(|k| a.nbr(k))
                         .find(|q| in_plane(q) && *q != prev)
                         .unwrap();
                     if next == v {

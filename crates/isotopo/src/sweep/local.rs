@@ -35,7 +35,7 @@ pub fn handles(
     (out.len() == h).then_some(out)
 }
 
-/// Is the edge to `a.nbr[k]` usable in the region (a piece of the region on either side)?
+/// Is the edge to neighbour `k` usable in the region (a piece of the region on either side)?
 #[inline]
 fn usable(region: &dyn Region, a: &Around, k: usize) -> bool {
     let (l, r) = a.sides(k);
@@ -70,7 +70,7 @@ fn generators(g: &mut Graph, vertices: &[Vertex], region: &dyn Region) -> Option
                 if !usable(region, &a, k) {
                     continue;
                 }
-                let w = a.nbr[k];
+                let w = a.nbr(k);
                 let kw = key(w);
                 if kv < kw {
                     let (l, r) = a.sides(k);

@@ -157,8 +157,8 @@ fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
         let a = g.around(cur)?;
         // Along segments in the plane (never a diagonal through a tube).
         let next = (0..a.n)
-            .filter(|&k| !a.diagonal[k])
-            .map(|k| a.nbr[k])
+            .filter(|&k| !a.diagonal(k))
+            .map(|k| a.nbr(k))
             .find(|x| in_plane(x) && *x != prev)?;
         if next == start {
             return Some(out);

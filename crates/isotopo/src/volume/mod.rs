@@ -234,8 +234,8 @@ pub trait SliceReader: Send {
 /// Largest number of samples isotopo accepts in one volume (2^40, about 8 TB of float64):
 /// anything larger is a corrupt header, refused before allocating.
 pub const MAX_VOXELS: u64 = 1 << 40;
-/// Largest accepted extent along one axis.
-pub const MAX_DIM: usize = 1 << 20;
+/// Largest accepted extent along one axis (the surface graph packs coordinates in 20 bits).
+pub const MAX_DIM: usize = 1_000_000;
 
 /// Checks dims read from a header before anything is allocated for them.
 pub(crate) fn check_dims(path: &Path, dims: [usize; 3], dtype: DType) -> Result<()> {

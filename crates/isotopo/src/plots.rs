@@ -1,0 +1,283 @@
+//! The plots a user reads to choose `tau` (paper figures 10 and 11): a histogram of handle sizes
+//! and a scatter plot of Reeb-loop against cross-loop length, as SVG and PNG.
+
+use crate::error::{Error, Result};
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// One handle as plotted.
+#[derive(Clone, Copy, Debug)]
+pub struct PlotPoint {
+    /// Loop lengths in voxel edges (`None`: not found within the search limit).
+    pub reeb: Option<usize>,
+    pub cross: Option<usize>,
+    /// Whether the handle's smaller loop encloses void (hollow marker, as in the paper).
+    pub void: bool,
+}
+
+impl PlotPoint {
+    fn size(&self) -> Option<usize> {
+        match (self.reeb, self.cross) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+}
+
+const FONT: &str = "sans-serif";
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let _ = plotters::style::register_font(
+            FONT,
+            FontStyle::Normal,
+            include_bytes!("../assets/DejaVuSans.ttf"),
+        );
+    });
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::io(path, "drawing", std::io::Error::other(e.to_string()))
+}
+
+/// Writes `histogram.svg/png` and `scatter.svg/png` into `dir`; returns their paths.
+pub fn write(
+    dir: &Path,
+    title: &str,
+    points: &[PlotPoint],
+    tau: Option<f64>,
+) -> Result<Vec<PathBuf>> {
+    register_font();
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "creating", e))?;
+    let mut out = Vec::new();
+    for ext in ["svg", "png"] {
+        let h = dir.join(format!("histogram.{ext}"));
+        atomically(&h, ext, |p| histogram(p, ext, title, points, tau))?;
+        out.push(h);
+        let s = dir.join(format!("scatter.{ext}"));
+        atomically(&s, ext, |p| scatter(p, ext, title, points, tau))?;
+        out.push(s);
+    }
+    Ok(out)
+}
+
+/// Draws into a temporary file beside `path`, then moves it into place.
+fn atomically(path: &Path, ext: &str, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let tmp = tempfile::Builder::new()
+        .prefix(".isotopo-")
+        .suffix(&format!(".{ext}"))
+        .tempfile_in(dir)
+        .map_err(|e| Error::io(path, "creating", e))?;
+    draw(tmp.path())?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _ = std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644));
+    }
+    tmp.persist(path)
+        .map_err(|e| Error::io(path, "moving into place", e.error))?;
+    Ok(())
+}
+
+const SIZE: (u32, u32) = (900, 600);
+
+fn histogram(
+    path: &Path,
+    ext: &str,
+    title: &str,
+    points: &[PlotPoint],
+    tau: Option<f64>,
+) -> Result<()> {
+    if ext == "svg" {
+        let root = SVGBackend::new(path, SIZE).into_drawing_area();
+        draw_histogram(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    } else {
+        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+        draw_histogram(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    }
+}
+
+fn scatter(
+    path: &Path,
+    ext: &str,
+    title: &str,
+    points: &[PlotPoint],
+    tau: Option<f64>,
+) -> Result<()> {
+    if ext == "svg" {
+        let root = SVGBackend::new(path, SIZE).into_drawing_area();
+        draw_scatter(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    } else {
+        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+        draw_scatter(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    }
+}
+
+type DrawResult<DB> =
+    std::result::Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Sizes on a logarithmic axis: one bin per voxel edge up to 20 (where noise handles are), then
+/// bins growing by a quarter; the count axis is logarithmic too, since a few large handles stand
+/// beside hundreds of small ones.
+fn draw_histogram<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    points: &[PlotPoint],
+    tau: Option<f64>,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let sizes: Vec<usize> = points.iter().filter_map(|p| p.size()).collect();
+    let max = sizes.iter().copied().max().unwrap_or(10).max(10) as f64;
+    let mut edges = vec![2.5f64];
+    while *edges.last().unwrap() <= max {
+        let e = *edges.last().unwrap();
+        edges.push(if e < 20.0 {
+            e + 1.0
+        } else {
+            (e * 1.25).round() + 0.5
+        });
+    }
+    let mut counts = vec![0u32; edges.len() - 1];
+    for &s in &sizes {
+        if let Some(b) = (0..counts.len()).find(|&b| (s as f64) < edges[b + 1]) {
+            counts[b] += 1;
+        }
+    }
+    let top = counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 2.0;
+    let not_found = points.len() - sizes.len();
+    let caption = format!(
+        "{title}: {} handles{}",
+        points.len(),
+        if not_found > 0 {
+            format!(" ({not_found} beyond the search limit)")
+        } else {
+            String::new()
+        }
+    );
+    let mut chart = ChartBuilder::on(root)
+        .caption(caption, (FONT, 22))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(
+            (2.5f64..*edges.last().unwrap()).log_scale(),
+            (0.8f64..top).log_scale(),
+        )?;
+    chart
+        .configure_mesh()
+        .x_desc("handle size = shorter of Reeb and cross loop (voxel edges)")
+        .y_desc("handles")
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 18))
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .disable_x_mesh()
+        .light_line_style(WHITE)
+        .draw()?;
+    chart.draw_series(
+        counts
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| c > 0)
+            .map(|(b, &c)| {
+                let (x0, x1) = (edges[b], edges[b + 1]);
+                Rectangle::new(
+                    [(x0 * 1.01, 0.8), (x1 / 1.01, c as f64)],
+                    RGBColor(70, 110, 200).filled(),
+                )
+            }),
+    )?;
+    if let Some(t) = tau.filter(|t| t.is_finite()) {
+        chart
+            .draw_series(LineSeries::new(
+                vec![(t, 0.8), (t, top)],
+                RED.stroke_width(2),
+            ))?
+            .label(format!("tau = {t}"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 16))
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()?;
+    }
+    Ok(())
+}
+
+/// Reeb-loop length against cross-loop length, both logarithmic; hollow markers where the
+/// smaller loop encloses void, filled where it encloses material.
+fn draw_scatter<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    points: &[PlotPoint],
+    tau: Option<f64>,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let both: Vec<(f64, f64, bool)> = points
+        .iter()
+        .filter_map(|p| Some((p.reeb? as f64, p.cross? as f64, p.void)))
+        .collect();
+    let max = both.iter().map(|p| p.0.max(p.1)).fold(10.0, f64::max) * 1.3;
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            format!("{title}: loop lengths of {} handles", both.len()),
+            (FONT, 22),
+        )
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d((2.5f64..max).log_scale(), (2.5f64..max).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("Reeb loop (voxel edges)")
+        .y_desc("cross loop (voxel edges)")
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 18))
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()?;
+    let blue = RGBColor(40, 80, 200);
+    chart
+        .draw_series(
+            both.iter()
+                .filter(|p| !p.2)
+                .map(|&(x, y, _)| Circle::new((x, y), 4, blue.filled())),
+        )?
+        .label("smaller loop encloses material")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 4, blue.filled()));
+    chart
+        .draw_series(
+            both.iter()
+                .filter(|p| p.2)
+                .map(|&(x, y, _)| Circle::new((x, y), 4, blue.stroke_width(1))),
+        )?
+        .label("smaller loop encloses void")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 4, blue.stroke_width(1)));
+    if let Some(t) = tau.filter(|t| t.is_finite()) {
+        chart
+            .draw_series(LineSeries::new(
+                vec![(t, 2.5), (t, t), (2.5, t)],
+                RED.stroke_width(2),
+            ))?
+            .label(format!(
+                "tau = {t}: handles below or left of the line are removed"
+            ))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 15))
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
