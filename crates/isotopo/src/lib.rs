@@ -22,6 +22,7 @@
 // Index loops read better than iterator chains in the matrix and grid code here.
 #![allow(clippy::needless_range_loop)]
 
+pub mod closure;
 pub mod error;
 pub mod loops;
 pub mod mesh;

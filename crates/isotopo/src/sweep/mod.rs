@@ -172,47 +172,115 @@ fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
     }
 }
 
-/// Sweeps one volume. At depth 0 ribbons of positive genus are resolved in mini-volumes; at
-/// depth 1 (a mini-volume) they are returned as unresolved.
-fn sweep_level(
-    vol: &MaskVolume,
+/// The sweep's state at the start of one slice, to step back to.
+#[derive(Clone, Copy, Debug)]
+struct Checkpoint {
+    nodes: usize,
+    uf: (usize, usize),
+    handles: usize,
+    unresolved: usize,
+    ribbons: usize,
+    probe_node: Option<u32>,
+    /// First node of the contours of the slice's upper plane.
+    contour_base: u32,
+}
+
+/// A sweep in progress over one volume: [`Sweeper::step`] processes the next slice, and
+/// [`Sweeper::rewind`] steps back to an earlier slice after the volume was edited there (the
+/// Reeb graph and its union-find are rolled back; slices below are kept as they were).
+///
+/// At depth 0 ribbons of positive genus are resolved in mini-volumes; at depth 1 (inside a
+/// mini-volume) they are returned as unresolved.
+pub struct Sweeper {
     conn: Connectivity,
     depth: u32,
     probe: Option<Probe>,
-    progress: &dyn Progress,
-) -> Result<SweepLevel> {
-    let table = cases(conn);
-    let nw = vol.dims[2] as i64;
-    let mut graph = ReebGraph::default();
-    let mut out = SweepLevel {
-        handles: Vec::new(),
-        unresolved: Vec::new(),
-        graph: ReebGraph::default(),
-        ribbon_chi4: Vec::new(),
-        ribbon_key: Vec::new(),
-        probe_node: None,
-    };
-    let mut uf = UnionFind::default();
-    let mut surface = Graph::new(vol, table);
-    // Contours of the previous slice's upper plane (= this slice's lower plane) and their nodes.
-    let mut prev_contours = contours::PlaneContours::default();
-    let mut prev_contour_node: Vec<u32> = Vec::new();
-    // Per node: the cube box of a ribbon, or a vertex and the length of a contour.
-    let mut ribbon_boxes: Vec<BBox> = Vec::new();
-    let mut contour_at: Vec<(Vertex, u32)> = Vec::new();
-    if depth == 0 {
-        progress.start("sweep", nw as u64 + 1);
+    /// The next slice to process (-1 ..= nw).
+    pub next: i64,
+    graph: ReebGraph,
+    /// Contours of the last processed slice's upper plane, and their nodes.
+    prev_contours: contours::PlaneContours,
+    prev_contour_node: Vec<u32>,
+    /// Per node: the cube box of a ribbon, or a vertex and the length of a contour.
+    ribbon_boxes: Vec<BBox>,
+    contour_at: Vec<(Vertex, u32)>,
+    /// Handles found so far, with the slice where each was found.
+    handles: Vec<(i64, LocatedHandle)>,
+    unresolved: Vec<Unresolved>,
+    ribbon_chi4: Vec<(u32, i64)>,
+    ribbon_key: Vec<(u32, [i64; 4])>,
+    probe_node: Option<u32>,
+    /// Checkpoint at the start of slice s, at index s + 1.
+    checkpoints: Vec<Checkpoint>,
+    uf: UnionFind,
+}
+
+impl Sweeper {
+    pub fn new(conn: Connectivity) -> Sweeper {
+        Sweeper::at_depth(conn, 0, None)
     }
-    for s in -1..nw {
+
+    fn at_depth(conn: Connectivity, depth: u32, probe: Option<Probe>) -> Sweeper {
+        Sweeper {
+            conn,
+            depth,
+            probe,
+            next: -1,
+            graph: ReebGraph::default(),
+            prev_contours: contours::PlaneContours::default(),
+            prev_contour_node: Vec::new(),
+            ribbon_boxes: Vec::new(),
+            contour_at: Vec::new(),
+            handles: Vec::new(),
+            unresolved: Vec::new(),
+            ribbon_chi4: Vec::new(),
+            ribbon_key: Vec::new(),
+            probe_node: None,
+            checkpoints: Vec::new(),
+            uf: UnionFind::default(),
+        }
+    }
+
+    /// Has every slice been processed?
+    pub fn done(&self, vol: &MaskVolume) -> bool {
+        self.next >= vol.dims[2] as i64
+    }
+
+    /// Handles found so far (slice where found, handle).
+    pub fn handles(&self) -> &[(i64, LocatedHandle)] {
+        &self.handles
+    }
+
+    fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
+        let id = self.graph.add_node(kind, level, local);
+        self.ribbon_boxes.push(BBox::EMPTY);
+        self.contour_at.push((Vertex { p: [0; 3], axis: 0 }, 0));
+        id
+    }
+
+    /// Processes the next slice; returns how many handles it found.
+    pub fn step(&mut self, vol: &MaskVolume) -> Result<usize> {
+        let conn = self.conn;
+        let table = cases(conn);
+        let s = self.next;
+        let found_before = self.handles.len();
+        self.checkpoints.truncate((s + 1) as usize);
+        self.checkpoints.push(Checkpoint {
+            nodes: self.graph.nodes.len(),
+            uf: self.graph.uf.checkpoint(),
+            handles: self.handles.len(),
+            unresolved: self.unresolved.len(),
+            ribbons: self.ribbon_chi4.len(),
+            probe_node: self.probe_node,
+            contour_base: 0,
+        });
         let cur = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
         let ribbon_node: Vec<u32> = (0..cur.ribbons.len())
             .map(|r| {
-                let id = graph.add_node(NodeKind::Ribbon, s as i32, r as u32);
+                let id = self.add_node(NodeKind::Ribbon, s as i32, r as u32);
                 let rb = &cur.ribbons[r];
-                ribbon_boxes.resize(id as usize + 1, BBox::EMPTY);
-                contour_at.resize(id as usize + 1, (Vertex { p: [0; 3], axis: 0 }, 0));
-                ribbon_boxes[id as usize] = cube_box(&vol.frame, rb.min, rb.max, s);
-                out.ribbon_chi4.push((id, rb.surface_chi4 as i64));
+                self.ribbon_boxes[id as usize] = cube_box(&vol.frame, rb.min, rb.max, s);
+                self.ribbon_chi4.push((id, rb.surface_chi4 as i64));
                 id
             })
             .collect();
@@ -234,9 +302,9 @@ fn sweep_level(
             }
         }
         for (r, k) in keys.into_iter().enumerate() {
-            out.ribbon_key.push((ribbon_node[r], k));
+            self.ribbon_key.push((ribbon_node[r], k));
         }
-        if let Some(p) = probe.filter(|p| p.w == s) {
+        if let Some(p) = self.probe.filter(|p| p.w == s) {
             let q = cur
                 .find_cube((p.u + 1) as u32, (p.v + 1) as u32)
                 .ok_or_else(|| Error::Internal("probe cube is not on the surface".into()))?;
@@ -246,47 +314,49 @@ fn sweep_level(
                 .iter()
                 .position(|pc| pc.corners & (1 << p.corner) != 0)
                 .ok_or_else(|| Error::Internal("probe corner owns no piece".into()))?;
-            out.probe_node =
+            self.probe_node =
                 Some(ribbon_node[cur.piece_ribbon[cube.first_piece as usize + k] as usize]);
         }
         // Bottom contours of each ribbon (plane s), distinct.
         let mut bottom_of: Vec<Vec<u32>> = vec![Vec::new(); cur.ribbons.len()];
-        if cur.bottom.len() * 2 != prev_contours.of_segment.len() {
+        if cur.bottom.len() * 2 != self.prev_contours.of_segment.len() {
             return Err(Error::Internal(format!(
                 "plane {s}: {} squares below, {} above",
-                prev_contours.of_segment.len() / 2,
+                self.prev_contours.of_segment.len() / 2,
                 cur.bottom.len()
             )));
         }
         for (k, &q) in cur.bottom.iter().enumerate() {
             for slot in 0..2 {
-                let c = prev_contours.of_segment[2 * k + slot];
+                let c = self.prev_contours.of_segment[2 * k + slot];
                 if c == u32::MAX {
                     continue;
                 }
                 let r = cur.face_ribbon(table, q as usize, 4, slot) as usize;
-                let node = prev_contour_node[c as usize];
+                let node = self.prev_contour_node[c as usize];
                 if !bottom_of[r].contains(&node) {
                     bottom_of[r].push(node);
                 }
             }
         }
         // Cycles: a ribbon meeting a contour already connected to it closes one.
+        let mut surface = Graph::new(vol, table);
         for (r, bottom) in bottom_of.iter().enumerate() {
             let rn = ribbon_node[r];
             for &c in bottom {
-                if graph.connected(c, rn) {
-                    let path = graph
+                if self.graph.connected(c, rn) {
+                    let path = self
+                        .graph
                         .shortest_path(rn, c)
                         .ok_or_else(|| Error::Internal("connected nodes without a path".into()))?;
                     let mut bbox = BBox::EMPTY;
                     let mut shortest: Option<(Vertex, u32, i32)> = None;
                     for &n in &path {
-                        let node = graph.nodes[n as usize];
+                        let node = self.graph.nodes[n as usize];
                         match node.kind {
-                            NodeKind::Ribbon => bbox.union(&ribbon_boxes[n as usize]),
+                            NodeKind::Ribbon => bbox.union(&self.ribbon_boxes[n as usize]),
                             NodeKind::Contour => {
-                                let (v, len) = contour_at[n as usize];
+                                let (v, len) = self.contour_at[n as usize];
                                 if shortest.is_none_or(|x| len < x.1) {
                                     shortest = Some((v, len, node.level));
                                 }
@@ -297,29 +367,33 @@ fn sweep_level(
                         .ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
                     let cut = walk_contour(&mut surface, v, level as i64)
                         .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
-                    out.handles.push(LocatedHandle {
-                        kind: HandleKind::ReebCycle,
-                        direct: false,
-                        cycle: path.iter().map(|&n| graph.nodes[n as usize]).collect(),
-                        volume: CycleVolume::Top,
-                        cut,
-                        allowed: None,
-                        top_node: rn,
-                        bbox,
-                    });
+                    let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
+                    self.handles.push((
+                        s,
+                        LocatedHandle {
+                            kind: HandleKind::ReebCycle,
+                            direct: false,
+                            cycle,
+                            volume: CycleVolume::Top,
+                            cut,
+                            allowed: None,
+                            top_node: rn,
+                            bbox,
+                        },
+                    ));
                 }
-                graph.add_edge(c, rn);
+                self.graph.add_edge(c, rn);
             }
         }
         // Contours of the upper plane, each joined to the ribbon below it.
-        let top = contours::label(&cur, 5, table, &mut uf);
+        let top = contours::label(&cur, 5, table, &mut self.uf);
+        let base = self.graph.nodes.len() as u32;
+        self.checkpoints
+            .last_mut()
+            .expect("pushed above")
+            .contour_base = base;
         let contour_node: Vec<u32> = (0..top.count())
-            .map(|c| {
-                let id = graph.add_node(NodeKind::Contour, s as i32 + 1, c as u32);
-                ribbon_boxes.resize(id as usize + 1, BBox::EMPTY);
-                contour_at.resize(id as usize + 1, (Vertex { p: [0; 3], axis: 0 }, 0));
-                id
-            })
+            .map(|c| self.add_node(NodeKind::Contour, s as i32 + 1, c as u32))
             .collect();
         let mut top_count = vec![0u32; cur.ribbons.len()];
         let mut joined = vec![false; top.count()];
@@ -332,11 +406,11 @@ fn sweep_level(
                 joined[c as usize] = true;
                 let r = cur.face_ribbon(table, q as usize, 5, slot) as usize;
                 let node = contour_node[c as usize];
-                graph.add_edge(node, ribbon_node[r]);
+                self.graph.add_edge(node, ribbon_node[r]);
                 // The segment's first end lies in plane s + 1 (face 5 of the cube).
                 let mut v = contour_vertex(&cur, &cur.top, k, slot, 5, table);
                 v.p[2] = s + 1;
-                contour_at[node as usize] = (v, top.length[c as usize]);
+                self.contour_at[node as usize] = (v, top.length[c as usize]);
                 top_count[r] += 1;
             }
         }
@@ -351,13 +425,13 @@ fn sweep_level(
             if g == 0 {
                 continue;
             }
-            if depth == 0 {
+            if self.depth == 0 {
                 for mut h in intra_ribbon(vol, &cur, r, s, conn, g)? {
                     h.top_node = ribbon_node[r];
-                    out.handles.push(h);
+                    self.handles.push((s, h));
                 }
             } else {
-                out.unresolved.push(Unresolved {
+                self.unresolved.push(Unresolved {
                     slice: s,
                     ribbon: r as u32,
                     genus: g,
@@ -365,18 +439,87 @@ fn sweep_level(
                 });
             }
         }
-        prev_contours = top;
-        prev_contour_node = contour_node;
+        self.prev_contours = top;
+        self.prev_contour_node = contour_node;
+        self.next = s + 1;
+        Ok(self.handles.len() - found_before)
+    }
+
+    /// Steps back so that slice `s0` is processed next, forgetting everything found from it on
+    /// (the volume may have changed there, but not below).
+    pub fn rewind(&mut self, vol: &MaskVolume, s0: i64) {
+        let s0 = s0.max(-1);
+        if s0 >= self.next {
+            return;
+        }
+        let cp = self.checkpoints[(s0 + 1) as usize];
+        // Contours of plane s0 were made with slice s0 - 1; their nodes stay, their edges up to
+        // the slice being redone go.
+        let keep_from = if s0 >= 0 {
+            self.checkpoints[s0 as usize].contour_base as usize
+        } else {
+            cp.nodes
+        };
+        self.graph.truncate_from(cp.nodes, keep_from);
+        self.graph.uf.rollback(cp.uf);
+        self.ribbon_boxes.truncate(cp.nodes);
+        self.contour_at.truncate(cp.nodes);
+        self.handles.truncate(cp.handles);
+        self.unresolved.truncate(cp.unresolved);
+        self.ribbon_chi4.truncate(cp.ribbons);
+        self.ribbon_key.truncate(cp.ribbons);
+        self.probe_node = cp.probe_node;
+        self.checkpoints.truncate((s0 + 1) as usize);
+        if s0 >= 0 {
+            let below =
+                SliceSurfels::build(vol.plane(s0 - 1), vol.plane(s0), (s0 - 1) as i32, self.conn);
+            self.prev_contours = contours::label(&below, 5, cases(self.conn), &mut self.uf);
+            self.prev_contour_node = (0..self.prev_contours.count() as u32)
+                .map(|c| keep_from as u32 + c)
+                .collect();
+        } else {
+            self.prev_contours = contours::PlaneContours::default();
+            self.prev_contour_node.clear();
+        }
+        self.next = s0;
+    }
+
+    /// 4 × Euler characteristic summed over every ribbon so far, per Reeb-graph component.
+    fn finish(self) -> SweepLevel {
+        SweepLevel {
+            handles: self.handles.into_iter().map(|(_, h)| h).collect(),
+            unresolved: self.unresolved,
+            graph: self.graph,
+            ribbon_chi4: self.ribbon_chi4,
+            ribbon_key: self.ribbon_key,
+            probe_node: self.probe_node,
+        }
+    }
+}
+
+/// Sweeps one volume from end to end.
+fn sweep_level(
+    vol: &MaskVolume,
+    conn: Connectivity,
+    depth: u32,
+    probe: Option<Probe>,
+    progress: &dyn Progress,
+) -> Result<SweepLevel> {
+    let mut sweeper = Sweeper::at_depth(conn, depth, probe);
+    if depth == 0 {
+        progress.start("sweep", vol.dims[2] as u64 + 1);
+    }
+    while !sweeper.done(vol) {
+        sweeper.step(vol)?;
         if depth == 0 {
             progress.advance(1);
-            progress.message(&format!("{} handles", out.handles.len()));
+            progress.message(&format!("{} handles", sweeper.handles.len()));
         }
     }
     if depth == 0 {
         progress.finish();
     }
-    out.graph = graph;
-    Ok(out)
+    Ok(sweeper.finish())
 }
 
 /// The `g` handles of ribbon `r` of slice `s`, from its capped mini-volume: the cycles of an

@@ -154,12 +154,18 @@ impl ReebGraph {
         None
     }
 
-    /// Removes every node from `first` on, with their edges and unions (the union-find must be
-    /// rolled back separately to the matching checkpoint).
+    /// Removes every node from `first` on, with their edges (the union-find must be rolled back
+    /// separately to the matching checkpoint).
     pub fn truncate(&mut self, first: usize) {
+        self.truncate_from(first, 0);
+    }
+
+    /// As [`ReebGraph::truncate`], when only nodes from `scan_from` on can have edges to the
+    /// removed ones.
+    pub fn truncate_from(&mut self, first: usize, scan_from: usize) {
         self.nodes.truncate(first);
         self.adj.truncate(first);
-        for a in &mut self.adj {
+        for a in &mut self.adj[scan_from.min(first)..] {
             a.retain(|&b| (b as usize) < first);
         }
     }

@@ -1,0 +1,344 @@
+//! Loop closure (paper §2.3): a thin wall spanning a loop, written into the volume.
+//!
+//! The wall is the set of samples within distance `d` of the triangle fan about the loop's
+//! centroid. Filling (collapse: the loop goes round empty space) sets them inside; cutting
+//! (pinch: the loop goes round material) sets them outside. The wall must stop paths of the
+//! *other* side (DESIGN.md §3): any step between two samples on opposite sides of the fan passes
+//! within half its length of the fan, so `d = 1/2` stops 6-adjacent paths and `d = √3/2` stops
+//! 26-adjacent ones.
+//!
+//! ```text
+//!        loop (on the surface)              the fan about its centroid c, and the samples
+//!      x---x---x                            within d of it: a wall across the tunnel
+//!     /    |    \                           (fill) or across the bar (cut)
+//!    x-----c-----x
+//!     \    |    /
+//!      x---x---x
+//! ```
+//!
+//! Each closure is verified before it is kept, locally and exactly: the surface pieces it touches
+//! all belong to the loop's surface (so no other surface changes), the surface's Euler
+//! characteristic rises by exactly 2 (one handle less), and the new surface around the wall is
+//! one connected piece (so the surface does not fall apart). Otherwise the volume is restored.
+
+use crate::loops::search::{key, FastMap, Graph, InBox};
+use crate::surface::{vertex_of, PieceRef, Vertex};
+use crate::sweep::MaskVolume;
+use crate::topology::cases::{cases, Connectivity};
+use std::collections::VecDeque;
+
+/// What a closure does to the handle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Operation {
+    /// Fill: the loop goes round empty space; the wall is set inside.
+    Collapse,
+    /// Cut: the loop goes round material; the wall is set outside.
+    Pinch,
+}
+
+impl Operation {
+    /// State the wall's samples are set to.
+    pub fn target(self) -> bool {
+        self == Operation::Collapse
+    }
+}
+
+/// The wall's base half-thickness: enough to stop the adjacency of the side it separates.
+pub fn base_thickness(op: Operation, conn: Connectivity) -> f64 {
+    // Filling stops outside paths; cutting stops inside paths.
+    let stops_26 = match (op, conn) {
+        (Operation::Collapse, Connectivity::Six) => true, // outside is 26-adjacent
+        (Operation::Pinch, Connectivity::TwentySix) => true, // inside is 26-adjacent
+        _ => false,
+    };
+    if stops_26 {
+        3f64.sqrt() / 2.0
+    } else {
+        0.5
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Squared distance from `p` to the triangle (a, b, c) (closest point by regions, as in
+/// Ericson's *Real-Time Collision Detection*).
+pub fn point_triangle_dist2(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    let closest = if d1 <= 0.0 && d2 <= 0.0 {
+        a
+    } else {
+        let bp = sub(p, b);
+        let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+        if d3 >= 0.0 && d4 <= d3 {
+            b
+        } else {
+            let vc = d1 * d4 - d3 * d2;
+            if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+                let v = d1 / (d1 - d3);
+                [a[0] + v * ab[0], a[1] + v * ab[1], a[2] + v * ab[2]]
+            } else {
+                let cp = sub(p, c);
+                let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+                if d6 >= 0.0 && d5 <= d6 {
+                    c
+                } else {
+                    let vb = d5 * d2 - d1 * d6;
+                    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+                        let w = d2 / (d2 - d6);
+                        [a[0] + w * ac[0], a[1] + w * ac[1], a[2] + w * ac[2]]
+                    } else {
+                        let va = d3 * d6 - d5 * d4;
+                        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+                            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+                            let bc = sub(c, b);
+                            [b[0] + w * bc[0], b[1] + w * bc[1], b[2] + w * bc[2]]
+                        } else {
+                            let denom = 1.0 / (va + vb + vc);
+                            let (v, w) = (vb * denom, vc * denom);
+                            [
+                                a[0] + ab[0] * v + ac[0] * w,
+                                a[1] + ab[1] * v + ac[1] * w,
+                                a[2] + ab[2] * v + ac[2] * w,
+                            ]
+                        }
+                    }
+                }
+            }
+        }
+    };
+    let d = sub(p, closest);
+    dot(d, d)
+}
+
+/// Samples (volume-local coordinates) within `d` of the fan spanning the closed polyline
+/// `points` about its centroid.
+pub fn wall(points: &[[f64; 3]], d: f64) -> Vec<[i64; 3]> {
+    let n = points.len() as f64;
+    let c = points.iter().fold([0.0; 3], |s, p| {
+        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
+    });
+    let d2 = d * d + 1e-9;
+    let mut out: FastMap<[i64; 3], ()> = FastMap::default();
+    for i in 0..points.len() {
+        let (a, b) = (points[i], points[(i + 1) % points.len()]);
+        let lo: [i64; 3] = std::array::from_fn(|k| (a[k].min(b[k]).min(c[k]) - d).floor() as i64);
+        let hi: [i64; 3] = std::array::from_fn(|k| (a[k].max(b[k]).max(c[k]) + d).ceil() as i64);
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let p = [x as f64, y as f64, z as f64];
+                    if point_triangle_dist2(p, c, a, b) <= d2 {
+                        out.insert([x, y, z], ());
+                    }
+                }
+            }
+        }
+    }
+    let mut v: Vec<[i64; 3]> = out.into_keys().collect();
+    v.sort();
+    v
+}
+
+/// A closure that was kept.
+#[derive(Clone, Debug)]
+pub struct Applied {
+    pub op: Operation,
+    /// Samples whose state was flipped (volume-local coordinates).
+    pub changed: Vec<[i64; 3]>,
+}
+
+/// Vertices the connectivity check may visit before it gives up (and the closure is refused).
+const CONNECT_BUDGET: usize = 1 << 22;
+
+/// Cubes (lower corners) with a corner among the given samples.
+fn touched_cubes(samples: &[[i64; 3]]) -> Vec<[i64; 3]> {
+    let mut set: FastMap<[i64; 3], ()> = FastMap::default();
+    for q in samples {
+        for dz in 0..2 {
+            for dy in 0..2 {
+                for dx in 0..2 {
+                    set.insert([q[0] - dx, q[1] - dy, q[2] - dz], ());
+                }
+            }
+        }
+    }
+    let mut v: Vec<[i64; 3]> = set.into_keys().collect();
+    v.sort();
+    v
+}
+
+/// For each piece in the cubes: one of its vertices; and the cubes' summed `chi4`.
+fn pieces_in(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> (Vec<Vertex>, i64) {
+    let table = cases(conn);
+    let mut verts = Vec::new();
+    let mut chi4 = 0i64;
+    for &q in cubes {
+        let case = &table[crate::surface::cube_case(vol, q) as usize];
+        for (k, piece) in case.pieces.iter().enumerate() {
+            chi4 += case.chi4[k] as i64;
+            verts.push(vertex_of(q, piece.loops[0][0]));
+        }
+    }
+    (verts, chi4)
+}
+
+/// Breadth-first search over the surface from `seeds`, within the region; stops once every
+/// vertex of `targets` is reached (true) or after `budget` vertices (false).
+fn reaches(
+    g: &mut Graph,
+    seeds: &[Vertex],
+    targets: &[Vertex],
+    region: &dyn crate::loops::search::Region,
+    budget: usize,
+) -> bool {
+    let mut want: FastMap<u64, ()> = targets.iter().map(|v| (key(*v), ())).collect();
+    let mut seen: FastMap<u64, ()> = FastMap::default();
+    let mut queue = VecDeque::new();
+    for &s in seeds {
+        if seen.insert(key(s), ()).is_none() {
+            want.remove(&key(s));
+            queue.push_back(s);
+        }
+    }
+    let mut visited = 0;
+    while let Some(v) = queue.pop_front() {
+        if want.is_empty() {
+            return true;
+        }
+        visited += 1;
+        if visited > budget {
+            return false;
+        }
+        let Some(a) = g.around(v) else { continue };
+        for k in 0..a.n {
+            let (l, r) = a.sides(k);
+            if !region.allows(&l) && !region.allows(&r) {
+                continue;
+            }
+            let w = a.nbr(k);
+            if seen.insert(key(w), ()).is_none() {
+                want.remove(&key(w));
+                queue.push_back(w);
+            }
+        }
+    }
+    want.is_empty()
+}
+
+/// Writes the wall for `lp` (its vertices, volume-local) into the mask and keeps it if it removes
+/// exactly one handle of the loop's surface and changes nothing else; else restores the mask.
+pub fn close(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    lp: &[Vertex],
+    op: Operation,
+    d: f64,
+) -> Option<Applied> {
+    let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
+    let target = op.target();
+    let [nu, nv, nw] = vol.dims.map(|x| x as i64);
+    let changed: Vec<[i64; 3]> = wall(&points, d)
+        .into_iter()
+        .filter(|q| (0..3).all(|k| q[k] >= 0) && q[0] < nu && q[1] < nv && q[2] < nw)
+        .filter(|q| vol.get(q[0], q[1], q[2]) != target)
+        .collect();
+    if changed.is_empty() {
+        return None;
+    }
+    let cubes = touched_cubes(&changed);
+    let table = cases(conn);
+    // Before: every piece the wall touches lies on the loop's surface, near the loop.
+    let (old_pieces, old_chi4) = pieces_in(vol, conn, &cubes);
+    let lo = cubes.iter().fold([i64::MAX; 3], |m, q| {
+        [m[0].min(q[0]), m[1].min(q[1]), m[2].min(q[2])]
+    });
+    let hi = cubes.iter().fold([i64::MIN; 3], |m, q| {
+        [m[0].max(q[0]), m[1].max(q[1]), m[2].max(q[2])]
+    });
+    let near = InBox {
+        lo: lo.map(|x| x - 2),
+        hi: hi.map(|x| x + 2),
+        filter: |_: &PieceRef| true,
+    };
+    {
+        let mut g = Graph::new(vol, table);
+        if !reaches(&mut g, lp, &old_pieces, &near, usize::MAX) {
+            return None;
+        }
+    }
+    for q in &changed {
+        vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);
+    }
+    let revert = |vol: &mut MaskVolume| {
+        for q in &changed {
+            vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !target);
+        }
+    };
+    // After: one handle less (the surface's chi up by 2), and what the wall touches is one
+    // connected piece of surface.
+    let (new_pieces, new_chi4) = pieces_in(vol, conn, &cubes);
+    let ok = new_chi4 - old_chi4 == 8 && {
+        let mut g = Graph::new(vol, table);
+        new_pieces.is_empty()
+            || reaches(
+                &mut g,
+                &new_pieces[..1],
+                &new_pieces,
+                &crate::loops::search::Everywhere,
+                CONNECT_BUDGET,
+            )
+    };
+    if !ok {
+        revert(vol);
+        return None;
+    }
+    Some(Applied { op, changed })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_distance() {
+        let (a, b, c) = ([0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]);
+        assert_eq!(point_triangle_dist2([1.0, 1.0, 2.0], a, b, c), 4.0);
+        assert_eq!(point_triangle_dist2([-1.0, -1.0, 0.0], a, b, c), 2.0);
+        assert_eq!(point_triangle_dist2([3.0, 3.0, 0.0], a, b, c), 2.0);
+        assert_eq!(point_triangle_dist2([2.0, -3.0, 0.0], a, b, c), 9.0);
+    }
+
+    /// A flat square loop in the plane z = 5 gives a wall of exactly that plane's samples inside
+    /// it, at both thicknesses.
+    #[test]
+    fn flat_loop_wall_is_one_sample_thick() {
+        let pts: Vec<[f64; 3]> = (0..4)
+            .flat_map(|i| {
+                [
+                    [1.5 + i as f64, 1.0, 5.0],
+                    [5.0, 1.5 + i as f64, 5.0],
+                    [4.5 - i as f64, 5.0, 5.0],
+                    [1.0, 4.5 - i as f64, 5.0],
+                ]
+            })
+            .collect();
+        let mut ordered = Vec::new();
+        for side in 0..4 {
+            for i in 0..4 {
+                ordered.push(pts[i * 4 + side]);
+            }
+        }
+        for d in [0.5, 3f64.sqrt() / 2.0] {
+            let w = wall(&ordered, d);
+            assert!(w.iter().all(|q| q[2] == 5), "{d}: {w:?}");
+            assert!(w.contains(&[3, 3, 5]));
+        }
+    }
+}
