@@ -33,6 +33,47 @@ enum Command {
     Handles(HandlesArgs),
     /// Locate every handle and measure it: Reeb loop, cross loop, size; statistics and plots.
     Analyze(AnalyzeArgs),
+    /// Remove every handle smaller than --tau by writing thin walls into the volume.
+    Simplify(SimplifyArgs),
+}
+
+#[derive(Args)]
+struct SimplifyArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
+    /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
+    #[arg(long)]
+    tau: f64,
+    /// Output volume (same format, type, header and geometry as the input unless the extension
+    /// says otherwise).
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Also write the simplified isosurface as a mesh (.ply, .obj or .stl).
+    #[arg(long, value_name = "OUT")]
+    mesh: Option<PathBuf>,
+    /// Only add material: close loops around empty space (handle collapse).
+    #[arg(long, conflicts_with = "cut_only")]
+    fill_only: bool,
+    /// Only remove material: close loops around material (handle pinch).
+    #[arg(long)]
+    cut_only: bool,
+    /// Keep long skinny handles: those whose longer loop is more than R times the shorter.
+    #[arg(long, value_name = "R")]
+    max_ratio: Option<f64>,
+    /// Sweep direction.
+    #[arg(long, value_enum, default_value = "z")]
+    axis: AxisArg,
+    /// Write a JSON report (genus before/after, every removed and kept handle).
+    #[arg(long, value_name = "OUT.json")]
+    report: Option<PathBuf>,
+    /// Print the JSON report to stdout instead of the summary.
+    #[arg(long)]
+    json: bool,
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -292,6 +333,7 @@ fn main() -> ExitCode {
         Command::Mesh(a) => cmd_mesh(a),
         Command::Handles(a) => cmd_handles(a),
         Command::Analyze(a) => cmd_analyze(a),
+        Command::Simplify(a) => cmd_simplify(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -698,6 +740,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
             .filter(|t| t.is_finite())
             .map(|t| t.ceil() as usize)
             .unwrap_or(usize::MAX),
+        exact: usize::MAX,
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
@@ -906,6 +949,219 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         secs,
         t_sweep,
         secs - t_sweep
+    );
+    Ok(())
+}
+
+fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
+    use isotopo::simplify::{Mode, SimplifyOptions, WallValues};
+    let opts = a.surface.options()?;
+    let axis = a.axis.axis();
+    if a.tau.is_nan() || a.tau <= 0.0 {
+        return Err(Error::usage("--tau must be positive (or inf)"));
+    }
+    if let Some(r) = a.max_ratio {
+        if r.is_nan() || r < 1.0 {
+            return Err(Error::usage("--max-ratio must be at least 1"));
+        }
+    }
+    let mut reader = a.input.open()?;
+    let info = reader.info().clone();
+    let mut outputs = vec![&a.output];
+    outputs.extend(a.mesh.iter());
+    outputs.extend(a.report.iter());
+    for (i, p) in outputs.iter().enumerate() {
+        volume::check_output_path(p, &info)?;
+        if outputs[..i].contains(p) {
+            return Err(Error::usage(format!(
+                "{}: given as two different outputs",
+                p.display()
+            )));
+        }
+    }
+    if volume::Format::from_path(&a.output).is_none() {
+        return Err(Error::usage(format!(
+            "{}: cannot tell the output format from the extension; use the input's ({})",
+            a.output.display(),
+            info.format.name()
+        )));
+    }
+    let sopts = SimplifyOptions {
+        tau: a.tau,
+        mode: if a.fill_only {
+            Mode::FillOnly
+        } else if a.cut_only {
+            Mode::CutOnly
+        } else {
+            Mode::Both
+        },
+        max_ratio: a.max_ratio,
+        conn: opts.connectivity,
+    };
+    let values = WallValues::new(info.dtype, &opts.classifier(&info));
+    let bars = progress::Bars::new(a.quiet || a.json);
+    let t0 = Instant::now();
+    let mut masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
+    let t_read = t0.elapsed().as_secs_f64();
+    let before = masks.genus(opts.connectivity)?;
+    let t = Instant::now();
+    let outcome = isotopo::simplify::simplify(&mut masks, &sopts, &info.affine, &bars)?;
+    let t_simplify = t.elapsed().as_secs_f64();
+    let after = masks.genus(opts.connectivity)?;
+    // Closures are checked one by one; check the whole volume too before writing anything.
+    if after.b0 != before.b0 || after.b2 != before.b2 {
+        return Err(Error::Internal(format!(
+            "simplification changed the solid's components or cavities (b0 {} -> {}, b2 {} -> {}); nothing written",
+            before.b0, after.b0, before.b2, after.b2
+        )));
+    }
+    if after.b1 as usize != outcome.kept.len() {
+        return Err(Error::Internal(format!(
+            "genus after is {} but the last sweep kept {} handles; nothing written",
+            after.b1,
+            outcome.kept.len()
+        )));
+    }
+    let t = Instant::now();
+    isotopo::simplify::write_edited(reader.as_mut(), &a.output, &outcome.edits, &values, &bars)?;
+    let t_write = t.elapsed().as_secs_f64();
+    let mut mesh_genus = None;
+    if let Some(p) = &a.mesh {
+        let mut out = volume::open(&a.output, &a.input.options())?;
+        let mesh = isotopo::mesh::extract(out.as_mut(), &opts, false, &bars)?;
+        mesh.write(p)?;
+        mesh_genus = Some(mesh.closed_euler_characteristic());
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let mut v = isotopo::report::simplify_json(&outcome, &before, &after, &info);
+    let tau_json = if a.tau.is_finite() {
+        serde_json::json!(a.tau)
+    } else {
+        serde_json::json!("inf")
+    };
+    let extra = serde_json::json!({
+        "file": info.path,
+        "output": a.output,
+        "mesh": a.mesh,
+        "dims": info.dims,
+        "dtype": info.dtype.name(),
+        "iso": opts.iso,
+        "inside": inside_name(opts.inside),
+        "connectivity": opts.connectivity.number(),
+        "axis": axis.name(),
+        "tau": tau_json,
+        "mode": sopts.mode,
+        "max_ratio": a.max_ratio,
+        "wall_values": values,
+        "mesh_euler_characteristic": mesh_genus,
+        "seconds": secs,
+        "seconds_read": t_read,
+        "seconds_simplify": t_simplify,
+        "seconds_write": t_write,
+    });
+    if let (Some(obj), serde_json::Value::Object(e)) = (v.as_object_mut(), extra) {
+        for (k, x) in e {
+            obj.insert(k, x);
+        }
+    }
+    if let Some(p) = &a.report {
+        isotopo::report::write_json(p, &v)?;
+    }
+    if a.json {
+        println!("{}", to_json(&v)?);
+        return Ok(());
+    }
+    if a.quiet {
+        return Ok(());
+    }
+    let collapse = v["collapse"].as_u64().unwrap_or(0);
+    let pinch = v["pinch"].as_u64().unwrap_or(0);
+    println!(
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}, tau {}{}{}",
+        info.path.display(),
+        num(opts.iso),
+        inside_name(opts.inside),
+        opts.connectivity.number(),
+        axis.name(),
+        if a.tau.is_finite() {
+            num(a.tau)
+        } else {
+            "inf".into()
+        },
+        match sopts.mode {
+            Mode::Both => "",
+            Mode::FillOnly => ", fill only",
+            Mode::CutOnly => ", cut only",
+        },
+        a.max_ratio
+            .map(|r| format!(", max ratio {}", num(r)))
+            .unwrap_or_default()
+    );
+    println!(
+        "grid        {}×{}×{} {}",
+        info.dims[0],
+        info.dims[1],
+        info.dims[2],
+        info.dtype.name()
+    );
+    println!(
+        "genus       {} -> {}   (components {} -> {}, cavities {} -> {})",
+        before.b1, after.b1, before.b0, after.b0, before.b2, after.b2
+    );
+    println!(
+        "removed     {} handles: {} collapse (fill), {} pinch (cut); intra-ribbon handles: {}",
+        collapse + pinch,
+        collapse,
+        pinch,
+        outcome.intra_ribbon
+    );
+    if !outcome.kept.is_empty() {
+        use isotopo::simplify::KeepReason;
+        let reasons = [
+            (KeepReason::Size, "at or above tau"),
+            (KeepReason::Ratio, "long and skinny (--max-ratio)"),
+            (KeepReason::Mode, "excluded by --fill-only/--cut-only"),
+            (KeepReason::ClosureFailed, "no clean wall found"),
+            (KeepReason::Unmeasured, "Reeb loop beyond the search budget"),
+            (KeepReason::PassLimit, "pass limit reached"),
+        ];
+        let parts: Vec<String> = reasons
+            .iter()
+            .filter_map(|(r, name)| {
+                let n = outcome.kept.iter().filter(|k| k.reason == *r).count();
+                (n > 0).then(|| format!("{n} {name}"))
+            })
+            .collect();
+        println!(
+            "kept        {} handles: {}",
+            outcome.kept.len(),
+            parts.join(", ")
+        );
+    }
+    println!(
+        "samples     {} changed ({} filled, {} cut), all within {:.1} voxels ({:.1} mm) of a closed loop; wall values: inside {}, outside {}",
+        group(outcome.edits.len() as u64),
+        group(v["samples_filled"].as_u64().unwrap_or(0)),
+        group(v["samples_cut"].as_u64().unwrap_or(0)),
+        v["max_distance"].as_f64().unwrap_or(0.0),
+        v["max_distance_mm"].as_f64().unwrap_or(0.0),
+        values.inside.map(num).unwrap_or_else(|| "-".into()),
+        values.outside.map(num).unwrap_or_else(|| "-".into())
+    );
+    println!(
+        "sweep       {} passes, {} rewinds, {} closures refused by the local check",
+        outcome.passes, outcome.rewinds, outcome.refused
+    );
+    println!("output      {}", a.output.display());
+    if let (Some(p), Some(chi)) = (&a.mesh, mesh_genus) {
+        println!("mesh        {} (Euler characteristic {})", p.display(), chi);
+    }
+    if let Some(p) = &a.report {
+        println!("report      {}", p.display());
+    }
+    println!(
+        "time        {:.2} s ({:.2} s read, {:.2} s simplify, {:.2} s write)",
+        secs, t_read, t_simplify, t_write
     );
     Ok(())
 }

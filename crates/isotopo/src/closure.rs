@@ -18,14 +18,15 @@
 //!
 //! Each closure is verified before it is kept, locally and exactly: the surface pieces it touches
 //! all belong to the loop's surface (so no other surface changes), the surface's Euler
-//! characteristic rises by exactly 2 (one handle less), and the new surface around the wall is
-//! one connected piece (so the surface does not fall apart). Otherwise the volume is restored.
+//! characteristic rises by a positive multiple of 2 (handles less), and the new surface around
+//! the wall is one connected piece (so the surface does not fall apart, and the solid keeps its
+//! components and cavities). Otherwise the volume is restored.
 
-use crate::loops::search::{key, FastMap, Graph, InBox};
+use crate::loops::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
 use crate::surface::{vertex_of, PieceRef, Vertex};
 use crate::sweep::MaskVolume;
 use crate::topology::cases::{cases, Connectivity};
-use std::collections::VecDeque;
+use crate::topology::genus::BBox;
 
 /// What a closure does to the handle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -152,9 +153,11 @@ pub struct Applied {
     pub op: Operation,
     /// Samples whose state was flipped (volume-local coordinates).
     pub changed: Vec<[i64; 3]>,
+    /// Handles it removed (usually 1; a wall across two tiny neighbouring handles removes both).
+    pub handles: usize,
 }
 
-/// Vertices the connectivity check may visit before it gives up (and the closure is refused).
+/// Vertices a connectivity check may visit before it gives up (and the closure is refused).
 const CONNECT_BUDGET: usize = 1 << 22;
 
 /// Cubes (lower corners) with a corner among the given samples.
@@ -174,72 +177,95 @@ fn touched_cubes(samples: &[[i64; 3]]) -> Vec<[i64; 3]> {
     v
 }
 
-/// For each piece in the cubes: one of its vertices; and the cubes' summed `chi4`.
-fn pieces_in(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> (Vec<Vertex>, i64) {
+/// The pieces of the given cubes: (cube, corner group, boundary loops), in a fixed order.
+type PieceKey = ([i64; 3], u8, Vec<Vec<u8>>);
+
+fn pieces_in(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> Vec<(PieceKey, i64)> {
     let table = cases(conn);
-    let mut verts = Vec::new();
-    let mut chi4 = 0i64;
+    let mut out = Vec::new();
     for &q in cubes {
         let case = &table[crate::surface::cube_case(vol, q) as usize];
         for (k, piece) in case.pieces.iter().enumerate() {
-            chi4 += case.chi4[k] as i64;
-            verts.push(vertex_of(q, piece.loops[0][0]));
+            out.push(((q, piece.corners, piece.loops.clone()), case.chi4[k] as i64));
+        }
+    }
+    out
+}
+
+/// Pieces of `a` not in `b` (a piece with the same corners and loops is the same surface
+/// patch), as one vertex each, and their summed `chi4`.
+fn only_in(a: &[(PieceKey, i64)], b: &[(PieceKey, i64)]) -> (Vec<Vertex>, i64) {
+    let mut verts = Vec::new();
+    let mut chi4 = 0;
+    for (p, c) in a {
+        if !b.iter().any(|(x, _)| x == p) {
+            verts.push(vertex_of(p.0, p.2[0][0]));
+            chi4 += c;
         }
     }
     (verts, chi4)
 }
 
-/// Breadth-first search over the surface from `seeds`, within the region; stops once every
-/// vertex of `targets` is reached (true) or after `budget` vertices (false).
-fn reaches(
-    g: &mut Graph,
-    seeds: &[Vertex],
-    targets: &[Vertex],
-    region: &dyn crate::loops::search::Region,
-    budget: usize,
-) -> bool {
-    let mut want: FastMap<u64, ()> = targets.iter().map(|v| (key(*v), ())).collect();
-    let mut seen: FastMap<u64, ()> = FastMap::default();
-    let mut queue = VecDeque::new();
-    for &s in seeds {
-        if seen.insert(key(s), ()).is_none() {
-            want.remove(&key(s));
-            queue.push_back(s);
-        }
+/// Is every one of `others` on the same surface as `from`? Searched near first; then from both
+/// ends with budgets growing fourfold, so a piece on a small separate surface is told apart at
+/// the cost of that small surface, not of the large one.
+fn joined(g: &mut Graph, from: &[Vertex], others: &[Vertex], near: &dyn Region) -> bool {
+    if g.reach(from, others, None, near, usize::MAX) == Reach::Reached {
+        return true;
     }
-    let mut visited = 0;
-    while let Some(v) = queue.pop_front() {
-        if want.is_empty() {
-            return true;
+    let mut budget = 1 << 10;
+    loop {
+        match g.reach(from, others, None, &Everywhere, budget) {
+            Reach::Reached => return true,
+            Reach::Exhausted => return false,
+            Reach::Budget => {}
         }
-        visited += 1;
-        if visited > budget {
+        for &p in others {
+            if g.reach(&[p], from, Some(1), &Everywhere, budget) == Reach::Exhausted {
+                return false;
+            }
+        }
+        if budget >= CONNECT_BUDGET {
             return false;
         }
-        let Some(a) = g.around(v) else { continue };
-        for k in 0..a.n {
-            let (l, r) = a.sides(k);
-            if !region.allows(&l) && !region.allows(&r) {
-                continue;
-            }
-            let w = a.nbr(k);
-            if seen.insert(key(w), ()).is_none() {
-                want.remove(&key(w));
-                queue.push_back(w);
-            }
-        }
+        budget *= 4;
     }
-    want.is_empty()
+}
+
+/// Sets the samples to `inside` and keeps the graph's neighbourhoods up to date.
+fn flip(
+    vol: &mut MaskVolume,
+    cache: &mut GraphCache,
+    samples: &[[i64; 3]],
+    inside: bool,
+    conn: Connectivity,
+) {
+    let mut b = BBox::EMPTY;
+    for q in samples {
+        vol.set(q[0] as usize, q[1] as usize, q[2] as usize, inside);
+        b.include(*q);
+    }
+    cache.invalidate(vol, cases(conn), b.min, b.max);
 }
 
 /// Writes the wall for `lp` (its vertices, volume-local) into the mask and keeps it if it removes
-/// exactly one handle of the loop's surface and changes nothing else; else restores the mask.
+/// handles of the loop's surface only, and at least one; else restores the mask.
+///
+/// Why the checks suffice: cubes with no flipped corner keep their pieces, and so do pieces of
+/// touched cubes whose corners and loops stay the same; only the others change. If every piece
+/// that goes lies on the loop's surface S and the pieces that come are all connected, the rest
+/// of S hangs on them (it met the pieces that went at crossing points that are still there), so
+/// S stays one surface and the others are untouched; its Euler characteristic, a sum over
+/// pieces, then says how many handles went.
+///
+/// `cache` holds the surface graph's neighbourhoods of `vol`, and is kept up to date.
 pub fn close(
     vol: &mut MaskVolume,
     conn: Connectivity,
     lp: &[Vertex],
     op: Operation,
     d: f64,
+    cache: &mut GraphCache,
 ) -> Option<Applied> {
     let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
     let target = op.target();
@@ -254,8 +280,7 @@ pub fn close(
     }
     let cubes = touched_cubes(&changed);
     let table = cases(conn);
-    // Before: every piece the wall touches lies on the loop's surface, near the loop.
-    let (old_pieces, old_chi4) = pieces_in(vol, conn, &cubes);
+    let before = pieces_in(vol, conn, &cubes);
     let lo = cubes.iter().fold([i64::MAX; 3], |m, q| {
         [m[0].min(q[0]), m[1].min(q[1]), m[2].min(q[2])]
     });
@@ -267,39 +292,59 @@ pub fn close(
         hi: hi.map(|x| x + 2),
         filter: |_: &PieceRef| true,
     };
-    {
-        let mut g = Graph::new(vol, table);
-        if !reaches(&mut g, lp, &old_pieces, &near, usize::MAX) {
-            return None;
-        }
-    }
     for q in &changed {
         vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);
     }
-    let revert = |vol: &mut MaskVolume| {
-        for q in &changed {
-            vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !target);
-        }
-    };
-    // After: one handle less (the surface's chi up by 2), and what the wall touches is one
-    // connected piece of surface.
-    let (new_pieces, new_chi4) = pieces_in(vol, conn, &cubes);
-    let ok = new_chi4 - old_chi4 == 8 && {
-        let mut g = Graph::new(vol, table);
-        new_pieces.is_empty()
-            || reaches(
-                &mut g,
-                &new_pieces[..1],
-                &new_pieces,
-                &crate::loops::search::Everywhere,
-                CONNECT_BUDGET,
-            )
-    };
-    if !ok {
-        revert(vol);
+    let after = pieces_in(vol, conn, &cubes);
+    let (new_pieces, new_chi4) = only_in(&after, &before);
+    for q in &changed {
+        vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !target);
+    }
+    // Only pieces that change matter: a wall may brush another surface's piece without changing it.
+    let (old_pieces, old_chi4) = only_in(&before, &after);
+    let handles = (new_chi4 - old_chi4) / 8;
+    if handles < 1 || (new_chi4 - old_chi4) % 8 != 0 {
+        debug_refusal(
+            &format!("chi4 {:+}", new_chi4 - old_chi4),
+            lp,
+            op,
+            d,
+            &changed,
+        );
         return None;
     }
-    Some(Applied { op, changed })
+    let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
+    let same_surface = joined(&mut g, lp, &old_pieces, &near);
+    *cache = g.into_cache();
+    if !same_surface {
+        debug_refusal("the wall touches another surface", lp, op, d, &changed);
+        return None;
+    }
+    flip(vol, cache, &changed, target, conn);
+    let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
+    let ok = !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near);
+    *cache = g.into_cache();
+    if !ok {
+        debug_refusal("the surface would fall apart", lp, op, d, &changed);
+        flip(vol, cache, &changed, !target, conn);
+        return None;
+    }
+    Some(Applied {
+        op,
+        changed,
+        handles: handles as usize,
+    })
+}
+
+/// With `ISOTOPO_DEBUG` set, says why a closure was refused.
+fn debug_refusal(why: &str, lp: &[Vertex], op: Operation, d: f64, changed: &[[i64; 3]]) {
+    if std::env::var_os("ISOTOPO_DEBUG").is_some() {
+        eprintln!(
+            "closure refused ({why}): loop of {} edges, {op:?}, half-thickness {d:.2}, {} samples",
+            lp.len(),
+            changed.len()
+        );
+    }
 }
 
 #[cfg(test)]

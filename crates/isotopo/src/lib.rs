@@ -29,6 +29,7 @@ pub mod mesh;
 pub mod plots;
 pub mod progress;
 pub mod report;
+pub mod simplify;
 pub mod surface;
 pub mod sweep;
 pub mod topology;

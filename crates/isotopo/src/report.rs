@@ -213,3 +213,76 @@ pub fn handles_json(report: &HandleReport, info: &VolumeInfo) -> Vec<Value> {
         })
         .collect()
 }
+
+/// Writes a JSON value to a file, atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text =
+        serde_json::to_string_pretty(value).map_err(|e| Error::Internal(format!("JSON: {e}")))?;
+    let mut out = AtomicOutput::create(path, Compression::None)?;
+    out.write_all(text.as_bytes())?;
+    out.write_all(b"\n")?;
+    out.commit()
+}
+
+/// The simplification report: Table-1 counts, then each removed and kept handle.
+pub fn simplify_json(
+    outcome: &crate::simplify::Outcome,
+    before: &crate::topology::genus::GenusReport,
+    after: &crate::topology::genus::GenusReport,
+    info: &VolumeInfo,
+) -> serde_json::Value {
+    use crate::closure::Operation;
+    let count = |op| -> usize {
+        outcome
+            .removed
+            .iter()
+            .filter(|r| r.operation == op)
+            .map(|r| r.handles)
+            .sum()
+    };
+    let removed: Vec<serde_json::Value> = outcome
+        .removed
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let mut v = serde_json::to_value(r).unwrap_or_default();
+            v["id"] = i.into();
+            v["bbox_mm"] = serde_json::json!(r.bbox.to_mm(&info.affine));
+            v
+        })
+        .collect();
+    let max_distance = outcome
+        .removed
+        .iter()
+        .map(|r| r.max_distance)
+        .fold(0.0, f64::max);
+    let max_distance_mm = outcome
+        .removed
+        .iter()
+        .map(|r| r.max_distance_mm)
+        .fold(0.0, f64::max);
+    serde_json::json!({
+        "genus_before": before.b1,
+        "genus_after": after.b1,
+        "b0_before": before.b0,
+        "b0_after": after.b0,
+        "b2_before": before.b2,
+        "b2_after": after.b2,
+        "surfaces_before": before.surfaces.len(),
+        "surfaces_after": after.surfaces.len(),
+        "intra_ribbon": outcome.intra_ribbon,
+        "collapse": count(Operation::Collapse),
+        "pinch": count(Operation::Pinch),
+        "samples_changed": outcome.edits.len(),
+        "samples_filled": outcome.edits.iter().filter(|e| e.1).count(),
+        "samples_cut": outcome.edits.iter().filter(|e| !e.1).count(),
+        "max_distance": max_distance,
+        "max_distance_mm": max_distance_mm,
+        "passes": outcome.passes,
+        "rewinds": outcome.rewinds,
+        "closures_refused": outcome.refused,
+        "seconds_stages": outcome.seconds,
+        "removed": removed,
+        "kept": outcome.kept,
+    })
+}

@@ -26,7 +26,7 @@ fn analyze(
     let r = find_handles(&masks, axis, conn, &NoProgress).unwrap();
     let loops = {
         let mut g = Graph::new(&masks, cases(conn));
-        let mut cache = SliceCache::new(&masks, conn);
+        let mut cache = SliceCache::new(conn);
         r.handles
             .iter()
             .map(|h| measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, Limits::NONE))

@@ -19,7 +19,9 @@ use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
-use search::{shortest_odd_loop, Everywhere, FastMap, Graph, InBox, PieceSet, Region};
+use search::{
+    short_odd_loop, shortest_odd_loop, Everywhere, FastMap, Graph, InBox, PieceSet, Region,
+};
 
 /// What a loop's spanning disk would pass through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -97,12 +99,16 @@ pub struct Limits {
     pub reeb: usize,
     /// Longest cross loop looked for (`tau` when simplifying: longer cannot matter).
     pub cross: usize,
+    /// Reeb loops known to be at least this long may come out longer than the shortest (they
+    /// still cross their cycle once, so they still define the cross loop).
+    pub exact: usize,
 }
 
 impl Limits {
     pub const NONE: Limits = Limits {
         reeb: usize::MAX,
         cross: usize::MAX,
+        exact: usize::MAX,
     };
 }
 
@@ -125,33 +131,40 @@ pub fn map_vertex(v: Vertex, from: &Frame, to: &Frame) -> Vertex {
 }
 
 /// Surfels of the swept volume's slices, built when first needed and kept for later handles.
-pub struct SliceCache<'a> {
-    vol: &'a MaskVolume,
+pub struct SliceCache {
     conn: Connectivity,
     slices: FastMap<i64, SliceSurfels>,
 }
 
-impl<'a> SliceCache<'a> {
-    pub fn new(vol: &'a MaskVolume, conn: Connectivity) -> SliceCache<'a> {
+/// Slices a cache keeps between handles before starting afresh (they are rebuilt when needed
+/// again); one handle's cycle may need more.
+const SLICE_CACHE_LIMIT: usize = 64;
+
+impl SliceCache {
+    pub fn new(conn: Connectivity) -> SliceCache {
         SliceCache {
-            vol,
             conn,
             slices: FastMap::default(),
         }
     }
 
-    fn ensure(&mut self, s: i64) {
-        let (vol, conn) = (self.vol, self.conn);
+    fn ensure(&mut self, vol: &MaskVolume, s: i64) {
+        let conn = self.conn;
         self.slices
             .entry(s)
             .or_insert_with(|| SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn));
+    }
+
+    /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there).
+    pub fn invalidate(&mut self, w0: i64, w1: i64) {
+        self.slices.retain(|&s, _| s + 1 < w0 || s > w1);
     }
 }
 
 /// The ribbons of a top-level Reeb cycle, as a region: a piece belongs when its slice's ribbon
 /// label is one of the cycle's ribbons in that slice.
 struct CycleRegion<'c> {
-    cache: &'c SliceCache<'c>,
+    cache: &'c SliceCache,
     ribbons: FastMap<i64, Vec<u32>>,
 }
 
@@ -210,6 +223,7 @@ pub fn reeb_loop(
     h: &Handle,
     conn: Connectivity,
     limit: usize,
+    exact_below: usize,
 ) -> Option<Vec<Vertex>> {
     let table = cases(conn);
     let vol = top.vol;
@@ -217,12 +231,15 @@ pub fn reeb_loop(
     match &l.volume {
         CycleVolume::Top => {
             let mut ribbons: FastMap<i64, Vec<u32>> = FastMap::default();
+            if cache.slices.len() > SLICE_CACHE_LIMIT {
+                cache.slices.clear();
+            }
             for n in l.cycle.iter().filter(|n| n.kind == NodeKind::Ribbon) {
                 ribbons.entry(n.level as i64).or_default().push(n.local);
-                cache.ensure(n.level as i64);
+                cache.ensure(vol, n.level as i64);
             }
             let region = CycleRegion { cache, ribbons };
-            shortest_odd_loop(top, &l.cut, &region, limit)
+            short_odd_loop(top, &l.cut, &region, limit, exact_below)
         }
         CycleVolume::Mini(mini) => {
             let allowed = l.allowed?;
@@ -232,7 +249,7 @@ pub fn reeb_loop(
                 None
             } else {
                 let region = mini_cycle_region(mini, h, allowed, conn);
-                shortest_odd_loop(&mut g, &l.cut, &region, limit)
+                short_odd_loop(&mut g, &l.cut, &region, limit, exact_below)
             };
             let found = found.or_else(|| {
                 let region = InBox {
@@ -240,7 +257,7 @@ pub fn reeb_loop(
                     hi: allowed.1,
                     filter: |_: &PieceRef| true,
                 };
-                shortest_odd_loop(&mut g, &l.cut, &region, limit)
+                short_odd_loop(&mut g, &l.cut, &region, limit, exact_below)
             })?;
             Some(
                 found
@@ -267,7 +284,7 @@ pub fn measure(
     limits: Limits,
 ) -> HandleLoops {
     let vol = top.vol;
-    let reeb = reeb_loop(top, cache, h, conn, limits.reeb);
+    let reeb = reeb_loop(top, cache, h, conn, limits.reeb, limits.exact);
     let cross = reeb.as_ref().and_then(|r| cross_loop(top, r, limits.cross));
     let describe = |lp: &[Vertex], partner: Option<&[Vertex]>| -> Loop {
         let points: Vec<[f64; 3]> = lp
@@ -429,7 +446,7 @@ pub fn measure_all(
     let out = handles
         .par_iter()
         .map_init(
-            || (Graph::new(vol, table), SliceCache::new(vol, conn)),
+            || (Graph::new(vol, table), SliceCache::new(conn)),
             |(g, cache), h| {
                 // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
                 if g.len() > GRAPH_CACHE_LIMIT {

@@ -63,21 +63,178 @@ pub struct Graph<'a> {
     scratch: Scratch,
 }
 
+/// A graph's numbered neighbourhoods, detached from its volume so that they can outlive an edit
+/// of the volume ([`GraphCache::invalidate`] forgets what the edit changed).
+#[derive(Default)]
+pub struct GraphCache {
+    index: FastMap<u64, u32>,
+    arena: Vec<Around>,
+    verts: Vec<Vertex>,
+    nbr_num: Vec<[u32; MAX_DEGREE]>,
+    scratch: Scratch,
+}
+
+impl GraphCache {
+    /// Vertices numbered.
+    pub fn len(&self) -> usize {
+        self.arena.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.arena.is_empty()
+    }
+
+    /// After samples in `lo ..= hi` changed in `vol`: recomputes the neighbourhoods that may
+    /// have changed. A vertex's neighbourhood depends on the four cubes around its edge, whose
+    /// corners lie within one sample of the edge's lower end, so vertices within one sample of
+    /// the box are redone; their numbers stay, so the rest of the graph stays valid.
+    pub fn invalidate(
+        &mut self,
+        vol: &MaskVolume,
+        table: &[Case; 256],
+        lo: [i64; 3],
+        hi: [i64; 3],
+    ) {
+        for z in lo[2] - 1..=hi[2] + 1 {
+            for y in lo[1] - 1..=hi[1] + 1 {
+                for x in lo[0] - 1..=hi[0] + 1 {
+                    for axis in 0..3u8 {
+                        let v = Vertex { p: [x, y, z], axis };
+                        let k = key(v);
+                        match self.index.get(&k).copied() {
+                            None => {}
+                            Some(ABSENT) => {
+                                self.index.remove(&k);
+                            }
+                            Some(i) => {
+                                self.nbr_num[i as usize] = [UNRESOLVED; MAX_DEGREE];
+                                match around(vol, table, v) {
+                                    Some(a) => self.arena[i as usize] = a,
+                                    None => {
+                                        // Its number stays allocated but unreachable.
+                                        self.index.insert(k, ABSENT);
+                                        self.arena[i as usize].n = 0;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 const UNRESOLVED: u32 = u32::MAX - 1;
 
 /// Marks a vertex that is not on the surface.
 const ABSENT: u32 = u32::MAX;
 
+/// How a reachability search ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reach {
+    /// As many targets as wanted were reached.
+    Reached,
+    /// The surface within the region ran out first.
+    Exhausted,
+    /// The budget of vertices ran out first: undecided.
+    Budget,
+}
+
 impl<'a> Graph<'a> {
     pub fn new(vol: &'a MaskVolume, table: &'a [Case; 256]) -> Graph<'a> {
+        Graph::with_cache(vol, table, GraphCache::default())
+    }
+
+    /// A graph over `vol` that starts from neighbourhoods computed earlier on the same volume.
+    pub fn with_cache(vol: &'a MaskVolume, table: &'a [Case; 256], c: GraphCache) -> Graph<'a> {
         Graph {
             vol,
             table,
-            index: FastMap::default(),
-            arena: Vec::new(),
-            verts: Vec::new(),
-            nbr_num: Vec::new(),
-            scratch: Scratch::default(),
+            index: c.index,
+            arena: c.arena,
+            verts: c.verts,
+            nbr_num: c.nbr_num,
+            scratch: c.scratch,
+        }
+    }
+
+    /// Detaches the neighbourhoods from the volume.
+    pub fn into_cache(self) -> GraphCache {
+        GraphCache {
+            index: self.index,
+            arena: self.arena,
+            verts: self.verts,
+            nbr_num: self.nbr_num,
+            scratch: self.scratch,
+        }
+    }
+
+    /// Breadth-first search over the surface from `seeds`, within the region, until `want` of
+    /// the distinct `targets` are reached (`None`: all of them), visiting at most `budget`
+    /// vertices.
+    pub fn reach(
+        &mut self,
+        seeds: &[Vertex],
+        targets: &[Vertex],
+        want: Option<usize>,
+        region: &dyn Region,
+        budget: usize,
+    ) -> Reach {
+        let gen = self.scratch.next_generation();
+        self.scratch.next_region();
+        let mut pending: FastMap<u32, ()> = FastMap::default();
+        for &t in targets {
+            if let Some(i) = self.index(t) {
+                pending.insert(i, ());
+            }
+        }
+        if pending.len()
+            < targets
+                .iter()
+                .collect::<std::collections::HashSet<_>>()
+                .len()
+        {
+            // A target that is not on the surface is never reached.
+            return Reach::Exhausted;
+        }
+        let want = want.unwrap_or(pending.len()).min(pending.len());
+        let need_left = pending.len() - want;
+        let mut queue = VecDeque::new();
+        let visit =
+            |g: &mut Graph, i: u32, queue: &mut VecDeque<u32>, pending: &mut FastMap<u32, ()>| {
+                g.scratch.ensure(g.arena.len() + 1, 0);
+                if g.scratch.stamp[i as usize] != gen {
+                    g.scratch.stamp[i as usize] = gen;
+                    pending.remove(&i);
+                    queue.push_back(i);
+                }
+            };
+        for &s in seeds {
+            if let Some(i) = self.index(s) {
+                visit(self, i, &mut queue, &mut pending);
+            }
+        }
+        let mut visited = 0;
+        loop {
+            if pending.len() <= need_left {
+                return Reach::Reached;
+            }
+            let Some(i) = queue.pop_front() else {
+                return Reach::Exhausted;
+            };
+            visited += 1;
+            if visited > budget {
+                return Reach::Budget;
+            }
+            let m = self.usable_mask(region, i);
+            for k in 0..self.arena[i as usize].n {
+                if m & (1 << k) != 0 {
+                    if let Some(j) = self.neighbour(i, k) {
+                        visit(self, j, &mut queue, &mut pending);
+                    }
+                }
+            }
         }
     }
 
@@ -432,7 +589,20 @@ pub fn shortest_odd_loop(
     region: &dyn Region,
     limit: usize,
 ) -> Option<Vec<Vertex>> {
-    shortest_loop_with_parities(g, cut, &[], region, limit)
+    shortest_loop_with_parities(g, cut, &[], region, limit, usize::MAX)
+}
+
+/// Like [`shortest_odd_loop`], but a loop known to be at least `exact_below` edges long is
+/// returned as soon as one is found, without the search for the shortest: enough to compare
+/// the loop with a threshold, and much faster around long Reeb cycles.
+pub fn short_odd_loop(
+    g: &mut Graph,
+    cut: &[Vertex],
+    region: &dyn Region,
+    limit: usize,
+    exact_below: usize,
+) -> Option<Vec<Vertex>> {
+    shortest_loop_with_parities(g, cut, &[], region, limit, exact_below)
 }
 
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
@@ -440,13 +610,17 @@ pub fn shortest_odd_loop(
 ///
 /// A first breadth-first search from all of `cut` at once gives a loop (a path that crosses,
 /// closed along `cut`) and so an upper bound; then one search per vertex of `cut`, each stopped
-/// at the best length so far, finds the shortest (within [`EXACT_BUDGET`]).
+/// at the best length so far, finds the shortest (within [`EXACT_BUDGET`]). The first loop is at
+/// most half of `cut` longer than the shortest (its path is no longer than the shortest loop,
+/// and closing it runs along `cut` the shorter way), so when even that leaves it at
+/// `exact_below` or more, it is returned as it is.
 pub fn shortest_loop_with_parities(
     g: &mut Graph,
     cut: &[Vertex],
     even: &[&[Vertex]],
     region: &dyn Region,
     limit: usize,
+    exact_below: usize,
 ) -> Option<Vec<Vertex>> {
     if cut.len() < 2 {
         return None;
@@ -464,6 +638,9 @@ pub fn shortest_loop_with_parities(
             if walk.len() < best_len {
                 best_len = walk.len();
                 best = Some(walk);
+            }
+            if best_len.saturating_sub(cut.len() / 2 + 1) >= exact_below {
+                return best;
             }
             // Search from the loop's own start first: it finds a loop no longer than the bound.
             if let Some(p) = sources.iter().position(|&v| v == start) {

@@ -28,7 +28,9 @@ pub fn handles(
             break;
         }
         let earlier: Vec<&[Vertex]> = out.iter().map(|(a, _)| a.as_slice()).collect();
-        if let Some(beta) = shortest_loop_with_parities(g, &cycle, &earlier, region, usize::MAX) {
+        if let Some(beta) =
+            shortest_loop_with_parities(g, &cycle, &earlier, region, usize::MAX, usize::MAX)
+        {
             out.push((cycle, beta));
         }
     }

@@ -13,6 +13,8 @@
 
 use crate::error::Result;
 use crate::progress::Progress;
+use crate::topology::cases::Connectivity;
+use crate::topology::genus::GenusReport;
 use crate::topology::{PlaneMask, SurfaceOptions};
 use crate::volume::{Samples, SliceReader};
 
@@ -198,5 +200,25 @@ impl MaskVolume {
             }
         }
         out
+    }
+}
+
+impl MaskVolume {
+    /// Betti numbers of the solid and genus of its surfaces (the genus pass run on the bits,
+    /// without areas).
+    pub fn genus(&self, conn: Connectivity) -> Result<GenusReport> {
+        use crate::topology::genus::SurfaceTracker;
+        use crate::topology::slice::SliceSurfels;
+        let mut tracker = SurfaceTracker::default();
+        let mut prev: Option<(SliceSurfels, u32)> = None;
+        for s in -1..self.dims[2] as i64 {
+            let cur = SliceSurfels::build(self.plane(s), self.plane(s + 1), s as i32, conn);
+            let base = tracker.add_slice(&cur, &[], prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
+            prev = Some((cur, base));
+        }
+        tracker.report(
+            self.dims,
+            &crate::volume::Affine::from_spacing([1.0; 3], [0.0; 3]),
+        )
     }
 }

@@ -1,0 +1,610 @@
+//! Handle removal (paper §2.3): sweep, measure each handle as it is found, close the small ones,
+//! rebuild the Reeb graph where the volume changed, and carry on.
+//!
+//! ```text
+//!   slice s:  step the sweep ──> handles closed at s ──> measure their loops
+//!                  ^                                         │ smaller than tau?
+//!                  │                                         v
+//!             rewind to the lowest slice the walls touched <── close (fill or cut)
+//! ```
+//!
+//! A closure changes samples near its loop only, and can expose handles it did not remove
+//! (a wall across a nested handle) or shorten the loops of others. Rewinding re-sweeps every
+//! slice the walls touched, so newly exposed handles are found and measured like any other. A
+//! handle measured before a later wall landed nearby may have become smaller than `tau`, so the
+//! whole sweep runs again until a pass closes nothing: the last pass is exactly an analysis of
+//! the result, and what it keeps is what is reported as kept.
+//!
+//! Every closure is verified locally before it is kept ([`closure::close`]): it removes one handle
+//! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
+//! is checked again on the whole volume at the end.
+
+use crate::closure::{self, base_thickness, Operation};
+use crate::error::{Error, Result};
+use crate::loops::search::{FastMap, Graph, GraphCache};
+use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, SliceCache};
+use crate::progress::Progress;
+use crate::sweep::{Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
+use crate::topology::cases::{cases, Connectivity};
+use crate::topology::genus::BBox;
+use crate::topology::Classifier;
+use crate::volume::{Affine, DType, Samples, SliceReader, VolumeInfo};
+use std::path::Path;
+
+/// Which closures are allowed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Fill or cut, whichever loop is smaller.
+    Both,
+    /// Only add material (close loops around void).
+    FillOnly,
+    /// Only remove material (close loops around material).
+    CutOnly,
+}
+
+impl Mode {
+    fn allows(self, op: Operation) -> bool {
+        match self {
+            Mode::Both => true,
+            Mode::FillOnly => op == Operation::Collapse,
+            Mode::CutOnly => op == Operation::Pinch,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SimplifyOptions {
+    /// Handles whose size (the shorter loop, in voxel edges) is below this are removed;
+    /// infinity removes every handle.
+    pub tau: f64,
+    pub mode: Mode,
+    /// Keep handles whose longer loop is more than this many times the shorter.
+    pub max_ratio: Option<f64>,
+    pub conn: Connectivity,
+}
+
+impl SimplifyOptions {
+    /// The searches' limits: longer loops cannot change a decision.
+    pub fn limits(&self) -> Limits {
+        let cross = if self.tau.is_finite() {
+            (self.tau * self.max_ratio.unwrap_or(1.0).max(1.0)).ceil()
+        } else {
+            f64::INFINITY
+        };
+        let cross = if cross < usize::MAX as f64 {
+            cross as usize
+        } else {
+            usize::MAX
+        };
+        Limits {
+            reeb: usize::MAX,
+            cross,
+            exact: cross,
+        }
+    }
+}
+
+/// Which of a handle's loops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LoopKind {
+    Reeb,
+    Cross,
+}
+
+/// A handle that was removed.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Removed {
+    /// The handle's size: its shorter loop (voxel edges).
+    pub size: usize,
+    pub reeb: Option<usize>,
+    pub cross: Option<usize>,
+    pub kind: HandleKind,
+    /// The loop that was closed, and how.
+    #[serde(rename = "loop")]
+    pub closed: LoopKind,
+    pub operation: Operation,
+    /// Length of the closed loop (voxel edges and mm).
+    pub length: usize,
+    pub length_mm: f64,
+    /// Half-thickness of the wall (voxels).
+    pub thickness: f64,
+    /// Samples this closure flipped.
+    pub samples_changed: usize,
+    /// Handles the wall removed: 1, or more when it also closed tiny handles right beside.
+    pub handles: usize,
+    /// Farthest flipped sample from the loop's polyline (voxels, and mm).
+    pub max_distance: f64,
+    pub max_distance_mm: f64,
+    /// The closed loop: polyline through edge midpoints, original voxel coordinates.
+    pub points: Vec<[f64; 3]>,
+    pub bbox: BBox,
+    /// Pass of the sweep (1-based) and slice at which it was closed.
+    pub pass: usize,
+    pub slice: i64,
+}
+
+/// Why a handle was kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KeepReason {
+    /// Both loops at or above tau.
+    Size,
+    /// Long and skinny: loop ratio above `--max-ratio`.
+    Ratio,
+    /// Its small loop is of the kind `--fill-only` / `--cut-only` excludes.
+    Mode,
+    /// No wall across its loops removed it cleanly.
+    ClosureFailed,
+    /// Its Reeb loop could not be found within the search budget.
+    Unmeasured,
+    /// Still below tau after the last pass allowed.
+    PassLimit,
+}
+
+/// A handle left in the result.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Kept {
+    pub size: Option<usize>,
+    pub reeb: Option<usize>,
+    pub cross: Option<usize>,
+    pub kind: HandleKind,
+    pub reason: KeepReason,
+    pub bbox: BBox,
+}
+
+/// A sample to change, in original coordinates, and whether it becomes inside.
+pub type Edit = ([i64; 3], bool);
+
+/// What simplification did.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub removed: Vec<Removed>,
+    /// The handles of the result (the last pass's analysis).
+    pub kept: Vec<Kept>,
+    /// Samples whose side changed, sorted by (z, y, x).
+    pub edits: Vec<Edit>,
+    /// Intra-ribbon handles the first pass met on its first visit of each slice.
+    pub intra_ribbon: usize,
+    /// Full sweeps run (the last one closed nothing, unless the limit was reached).
+    pub passes: usize,
+    /// How often the sweep stepped back after closures.
+    pub rewinds: usize,
+    /// Closures tried and refused by the local check.
+    pub refused: usize,
+    /// Seconds spent stepping the sweep, measuring loops and closing them.
+    pub seconds: StageSeconds,
+}
+
+/// Where the time went.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageSeconds {
+    pub sweep: f64,
+    pub loops: f64,
+    pub closures: f64,
+}
+
+/// How many full sweeps may run; the last must close nothing.
+const MAX_PASSES: usize = 8;
+
+/// Wall half-thicknesses tried beyond the base one before giving up on a loop.
+const EXTRA_THICKNESS: [f64; 3] = [0.0, 0.5, 1.0];
+
+/// The surface graph's neighbourhoods and the slices' surfels, kept between the steps of the
+/// sweep (measuring from scratch costs ten times more) and brought up to date after each wall.
+struct Caches {
+    graph: GraphCache,
+    slices: SliceCache,
+}
+
+/// Neighbourhoods kept between handles before starting afresh (memory).
+const GRAPH_CACHE_LIMIT: usize = 1 << 21;
+
+impl Caches {
+    /// Measures the handles one step of the sweep found.
+    fn measure(
+        &mut self,
+        vol: &MaskVolume,
+        new: &[LocatedHandle],
+        conn: Connectivity,
+        affine: &Affine,
+        limits: Limits,
+    ) -> Vec<HandleLoops> {
+        if self.graph.len() > GRAPH_CACHE_LIMIT {
+            self.graph = GraphCache::default();
+        }
+        let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut self.graph));
+        let out = new
+            .iter()
+            .map(|h| {
+                let h = Handle {
+                    id: 0,
+                    surface: 0,
+                    located: h.clone(),
+                };
+                let t = std::time::Instant::now();
+                let l = loops::measure(&mut g, &mut self.slices, &h, conn, affine, limits);
+                if std::env::var_os("ISOTOPO_DEBUG").is_some() {
+                    eprintln!(
+                        "measured {:?} in {:.1} ms: reeb {:?} cross {:?}, cycle of {} nodes",
+                        h.located.kind,
+                        t.elapsed().as_secs_f64() * 1e3,
+                        l.reeb.as_ref().map(|x| x.length),
+                        l.cross.as_ref().map(|x| x.length),
+                        h.located.cycle.len()
+                    );
+                }
+                l
+            })
+            .collect();
+        self.graph = g.into_cache();
+        out
+    }
+}
+
+/// The loops worth closing, best first, or why none is.
+fn plan<'l>(
+    l: &'l HandleLoops,
+    opts: &SimplifyOptions,
+) -> std::result::Result<Vec<(LoopKind, &'l Loop)>, KeepReason> {
+    let Some(reeb) = &l.reeb else {
+        return Err(KeepReason::Unmeasured);
+    };
+    let small: Vec<(LoopKind, &Loop)> = [
+        (LoopKind::Reeb, Some(reeb)),
+        (LoopKind::Cross, l.cross.as_ref()),
+    ]
+    .into_iter()
+    .filter_map(|(k, x)| x.map(|x| (k, x)))
+    .filter(|(_, x)| (x.length as f64) < opts.tau)
+    .collect();
+    if small.is_empty() {
+        return Err(KeepReason::Size);
+    }
+    if let Some(r) = opts.max_ratio {
+        // A missing cross loop is longer than tau · ratio (the search limit), so the ratio is
+        // above r whenever the Reeb loop is below tau.
+        let ratio = match &l.cross {
+            Some(c) => {
+                let (a, b) = (reeb.length.min(c.length), reeb.length.max(c.length));
+                b as f64 / a.max(1) as f64
+            }
+            None => f64::INFINITY,
+        };
+        if ratio > r {
+            return Err(KeepReason::Ratio);
+        }
+    }
+    let mut allowed: Vec<(LoopKind, &Loop)> = small
+        .into_iter()
+        .filter(|(_, x)| opts.mode.allows(operation_for(x)))
+        .collect();
+    if allowed.is_empty() {
+        return Err(KeepReason::Mode);
+    }
+    allowed.sort_by_key(|(_, x)| x.length);
+    Ok(allowed)
+}
+
+/// Closing a loop around void fills; closing one around material cuts.
+fn operation_for(l: &Loop) -> Operation {
+    match l.encloses {
+        Encloses::Void => Operation::Collapse,
+        Encloses::Material => Operation::Pinch,
+    }
+}
+
+/// Local box of a loop's vertices.
+fn loop_box(l: &Loop) -> BBox {
+    let mut b = BBox::EMPTY;
+    for v in &l.vertices {
+        b.include(v.p);
+        b.include(v.end());
+    }
+    b
+}
+
+fn overlaps(a: &BBox, b: &BBox, margin: i64) -> bool {
+    (0..3).all(|k| a.min[k] - margin <= b.max[k] && b.min[k] <= a.max[k] + margin)
+}
+
+/// Farthest of `samples` (original coordinates) from the polyline's points: voxels and mm.
+fn max_distance(samples: &[[i64; 3]], points: &[[f64; 3]], affine: &Affine) -> (f64, f64) {
+    let mut worst = (0.0f64, 0.0f64);
+    for q in samples {
+        let q = [q[0] as f64, q[1] as f64, q[2] as f64];
+        let mut best = (f64::INFINITY, f64::INFINITY);
+        for p in points {
+            let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            let vox = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let m = affine.apply_vector(d);
+            let mm = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+            best = (best.0.min(vox), best.1.min(mm));
+        }
+        worst = (worst.0.max(best.0), worst.1.max(best.1));
+    }
+    worst
+}
+
+/// Removes every handle of `vol` smaller than `opts.tau` (see the module documentation). `vol`
+/// is edited in place; the outcome lists the edits in original coordinates.
+pub fn simplify(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    affine: &Affine,
+    progress: &dyn Progress,
+) -> Result<Outcome> {
+    let conn = opts.conn;
+    let limits = opts.limits();
+    let mut removed: Vec<Removed> = Vec::new();
+    // First flip of each sample: local coordinates -> its original side.
+    let mut original: FastMap<[i64; 3], bool> = FastMap::default();
+    let (mut rewinds, mut refused) = (0, 0);
+    let mut intra_ribbon = 0;
+    let mut kept: Vec<(i64, Kept)> = Vec::new();
+    let mut pass = 0;
+    let mut seconds = StageSeconds::default();
+    loop {
+        pass += 1;
+        kept.clear();
+        let closed_before = removed.len();
+        let mut sweeper = Sweeper::new(conn);
+        let mut caches = Caches {
+            graph: GraphCache::default(),
+            slices: SliceCache::new(conn),
+        };
+        progress.start(&format!("pass {pass}"), vol.dims[2] as u64 + 1);
+        // Highest slice stepped so far: slices above it are seen for the first time.
+        let mut high = -2;
+        while !sweeper.done(vol) {
+            let s = sweeper.next;
+            let t = std::time::Instant::now();
+            let n = sweeper.step(vol)?;
+            seconds.sweep += t.elapsed().as_secs_f64();
+            let first_visit = s > high;
+            if first_visit {
+                progress.advance((s - high) as u64);
+                progress.message(&format!("{} removed", removed.len()));
+                high = s;
+            }
+            if n == 0 {
+                continue;
+            }
+            let all = sweeper.handles();
+            let new: Vec<LocatedHandle> = all[all.len() - n..]
+                .iter()
+                .map(|(_, h)| h.clone())
+                .collect();
+            if pass == 1 && first_visit {
+                intra_ribbon += new
+                    .iter()
+                    .filter(|h| h.kind == HandleKind::IntraRibbon)
+                    .count();
+            }
+            let t = std::time::Instant::now();
+            let measured = caches.measure(vol, &new, conn, affine, limits);
+            seconds.loops += t.elapsed().as_secs_f64();
+            let t = std::time::Instant::now();
+            let mut order: Vec<usize> = (0..n).collect();
+            order.sort_by_key(|&i| measured[i].size().unwrap_or(usize::MAX));
+            // Walls written at this step, as local boxes; the lowest slice they touched.
+            let mut walls: Vec<BBox> = Vec::new();
+            let mut lowest = i64::MAX;
+            for i in order {
+                let (h, l) = (&new[i], &measured[i]);
+                let keep = |reason| Kept {
+                    size: l.size(),
+                    reeb: l.reeb.as_ref().map(|x| x.length),
+                    cross: l.cross.as_ref().map(|x| x.length),
+                    kind: h.kind,
+                    reason,
+                    bbox: l.bbox().unwrap_or(h.bbox),
+                };
+                let candidates = match plan(l, opts) {
+                    Ok(c) => c,
+                    Err(reason) => {
+                        kept.push((s, keep(reason)));
+                        continue;
+                    }
+                };
+                // Measured before this step's walls: if one landed near, measure again after
+                // the rewind.
+                if candidates
+                    .iter()
+                    .any(|(_, x)| walls.iter().any(|w| overlaps(w, &loop_box(x), 2)))
+                {
+                    continue;
+                }
+                let mut done = None;
+                'loops: for &(which, lp) in &candidates {
+                    let op = operation_for(lp);
+                    for extra in EXTRA_THICKNESS {
+                        let d = base_thickness(op, conn) + extra;
+                        match closure::close(vol, conn, &lp.vertices, op, d, &mut caches.graph) {
+                            Some(applied) => {
+                                done = Some((which, lp, applied, d));
+                                break 'loops;
+                            }
+                            None => refused += 1,
+                        }
+                    }
+                }
+                let Some((which, lp, applied, d)) = done else {
+                    kept.push((s, keep(KeepReason::ClosureFailed)));
+                    continue;
+                };
+                let mut wall = BBox::EMPTY;
+                for q in &applied.changed {
+                    wall.include(*q);
+                    original.entry(*q).or_insert(!applied.op.target());
+                }
+                lowest = lowest.min(wall.min[2]);
+                caches.slices.invalidate(wall.min[2], wall.max[2]);
+                walls.push(wall);
+                let changed: Vec<[i64; 3]> = applied
+                    .changed
+                    .iter()
+                    .map(|q| vol.frame.to_original_i(*q))
+                    .collect();
+                let (dist, dist_mm) = max_distance(&changed, &lp.points, affine);
+                removed.push(Removed {
+                    size: l.size().unwrap_or(lp.length),
+                    reeb: l.reeb.as_ref().map(|x| x.length),
+                    cross: l.cross.as_ref().map(|x| x.length),
+                    kind: h.kind,
+                    closed: which,
+                    operation: applied.op,
+                    length: lp.length,
+                    length_mm: lp.length_mm,
+                    thickness: d,
+                    samples_changed: changed.len(),
+                    handles: applied.handles,
+                    max_distance: dist,
+                    max_distance_mm: dist_mm,
+                    points: lp.points.clone(),
+                    bbox: l.bbox().unwrap_or(h.bbox),
+                    pass,
+                    slice: s,
+                });
+            }
+            seconds.closures += t.elapsed().as_secs_f64();
+            if !walls.is_empty() {
+                // Slice lowest - 1 has a corner in the wall's lowest plane; redo from there,
+                // and at least from s (this step's handles, measured before the walls).
+                let to = (lowest - 1).min(s);
+                sweeper.rewind(vol, to);
+                kept.retain(|(at, _)| *at < to);
+                rewinds += 1;
+            }
+        }
+        progress.finish();
+        if removed.len() == closed_before {
+            break;
+        }
+        if pass == MAX_PASSES {
+            // The last pass closed something, so its measurements may be stale: say so.
+            for (_, k) in &mut kept {
+                if k.size.is_some_and(|s| (s as f64) < opts.tau) && k.reason == KeepReason::Size {
+                    k.reason = KeepReason::PassLimit;
+                }
+            }
+            break;
+        }
+    }
+    let mut edits: Vec<Edit> = original
+        .into_iter()
+        .filter(|(q, was)| vol.get(q[0], q[1], q[2]) != *was)
+        .map(|(q, was)| (vol.frame.to_original_i(q), !was))
+        .collect();
+    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
+    Ok(Outcome {
+        removed,
+        kept: kept.into_iter().map(|(_, k)| k).collect(),
+        edits,
+        intra_ribbon,
+        passes: pass,
+        rewinds,
+        refused,
+        seconds,
+    })
+}
+
+/// Stored values written for inside and outside samples: the representable values nearest the
+/// isovalue on each side (for floating-point samples, a relative margin of 2^-10 keeps the new
+/// surface from sitting exactly on the samples).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct WallValues {
+    pub inside: Option<f64>,
+    pub outside: Option<f64>,
+}
+
+impl WallValues {
+    pub fn new(dtype: DType, classifier: &Classifier) -> WallValues {
+        let s = classifier.scaling;
+        // The isovalue in stored units.
+        let raw_iso = (classifier.iso - s.inter) / s.slope;
+        let (lo, hi) = dtype.range();
+        let ok = |raw: f64, inside: bool| -> bool {
+            raw.is_finite()
+                && raw >= lo
+                && raw <= hi
+                && round_trip(dtype, raw) == raw
+                && classifier.inside_raw(raw) == inside
+        };
+        let pick = |inside: bool| -> Option<f64> {
+            let mut candidates: Vec<f64> = Vec::new();
+            if dtype.is_float() {
+                let eps = raw_iso.abs().max(1.0) / 1024.0;
+                for k in [1.0, 2.0, 4.0] {
+                    candidates.push(round_trip(dtype, raw_iso + k * eps));
+                    candidates.push(round_trip(dtype, raw_iso - k * eps));
+                }
+            } else {
+                let f = raw_iso.floor();
+                for k in -2..=3 {
+                    candidates.push((f + k as f64).clamp(lo, hi));
+                }
+            }
+            candidates
+                .into_iter()
+                .filter(|&r| ok(r, inside))
+                .min_by(|a, b| (a - raw_iso).abs().total_cmp(&(b - raw_iso).abs()))
+        };
+        WallValues {
+            inside: pick(true),
+            outside: pick(false),
+        }
+    }
+}
+
+/// The nearest value of the type (for floats; integers are passed through).
+fn round_trip(dtype: DType, v: f64) -> f64 {
+    match dtype {
+        DType::F32 => v as f32 as f64,
+        _ => v,
+    }
+}
+
+/// Streams `reader` to a new file `out`, with the edited samples set to the wall values.
+pub fn write_edited(
+    reader: &mut dyn SliceReader,
+    out: &Path,
+    edits: &[Edit],
+    values: &WallValues,
+    progress: &dyn Progress,
+) -> Result<()> {
+    reader.rewind()?;
+    let info: VolumeInfo = reader.info().clone();
+    let [nx, ny, nz] = info.dims;
+    let mut writer = crate::volume::create(out, &info)?;
+    let mut slice = Samples::new(info.dtype);
+    let mut next = 0;
+    progress.start("write", nz as u64);
+    for z in 0..nz {
+        reader.read_slice(&mut slice)?;
+        while next < edits.len() && edits[next].0[2] == z as i64 {
+            let ([x, y, _], inside) = edits[next];
+            let v = if inside {
+                values.inside
+            } else {
+                values.outside
+            }
+            .ok_or_else(|| {
+                Error::Internal(format!(
+                    "no {} value representable in {}",
+                    if inside { "inside" } else { "outside" },
+                    info.dtype
+                ))
+            })?;
+            debug_assert!((x as usize) < nx && (y as usize) < ny);
+            slice.set_f64(y as usize * nx + x as usize, v);
+            next += 1;
+        }
+        writer.write_slice(&slice)?;
+        progress.advance(1);
+    }
+    progress.finish();
+    let info = reader.info().clone();
+    writer.finish(&info)
+}
