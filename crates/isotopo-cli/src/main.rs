@@ -741,6 +741,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
             .map(|t| t.ceil() as usize)
             .unwrap_or(usize::MAX),
         exact: usize::MAX,
+        size_only: false,
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();

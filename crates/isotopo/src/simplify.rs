@@ -81,6 +81,8 @@ impl SimplifyOptions {
             reeb: usize::MAX,
             cross,
             exact: cross,
+            // The ratio of the loops needs both measured.
+            size_only: self.max_ratio.is_none(),
         }
     }
 }
@@ -196,6 +198,23 @@ const EXTRA_THICKNESS: [f64; 3] = [0.0, 0.5, 1.0];
 struct Caches {
     graph: GraphCache,
     slices: SliceCache,
+    /// Loops measured in this pass, by handle: after a rewind, the sweep finds the handles
+    /// above the walls again, and those whose loops lie away from every wall need not be
+    /// measured again. (A stale entry can only delay a closure to the next pass: the last pass
+    /// closes nothing, so its measurements are all fresh.)
+    memo: FastMap<u64, HandleLoops>,
+}
+
+/// Identity of a located handle across rewinds: its cut and where its cycle lies.
+fn memo_key(h: &LocatedHandle) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut s = std::collections::hash_map::DefaultHasher::new();
+    (h.kind == HandleKind::IntraRibbon).hash(&mut s);
+    h.direct.hash(&mut s);
+    h.cut.hash(&mut s);
+    h.bbox.min.hash(&mut s);
+    h.bbox.max.hash(&mut s);
+    s.finish()
 }
 
 /// Neighbourhoods kept between handles before starting afresh (memory).
@@ -218,6 +237,10 @@ impl Caches {
         let out = new
             .iter()
             .map(|h| {
+                let key = memo_key(h);
+                if let Some(l) = self.memo.get(&key) {
+                    return l.clone();
+                }
                 let h = Handle {
                     id: 0,
                     surface: 0,
@@ -235,11 +258,28 @@ impl Caches {
                         h.located.cycle.len()
                     );
                 }
+                self.memo.insert(key, l.clone());
                 l
             })
             .collect();
         self.graph = g.into_cache();
         out
+    }
+
+    /// Forgets the measurements whose loops come near one of the walls.
+    fn forget_near(&mut self, walls: &[BBox]) {
+        self.memo.retain(|_, l| {
+            [&l.reeb, &l.cross].into_iter().flatten().all(|x| {
+                let b = loop_box(x);
+                !walls.iter().any(|w| {
+                    overlaps(w, &b, 2)
+                        && x.vertices.iter().any(|v| {
+                            let e = BBox { min: v.p, max: v.p };
+                            overlaps(w, &e, 2)
+                        })
+                })
+            })
+        });
     }
 }
 
@@ -353,6 +393,7 @@ pub fn simplify(
         let mut caches = Caches {
             graph: GraphCache::default(),
             slices: SliceCache::new(conn),
+            memo: FastMap::default(),
         };
         progress.start(&format!("pass {pass}"), vol.dims[2] as u64 + 1);
         // Highest slice stepped so far: slices above it are seen for the first time.
@@ -473,6 +514,7 @@ pub fn simplify(
                 // Slice lowest - 1 has a corner in the wall's lowest plane; redo from there,
                 // and at least from s (this step's handles, measured before the walls).
                 let to = (lowest - 1).min(s);
+                caches.forget_near(&walls);
                 sweeper.rewind(vol, to);
                 kept.retain(|(at, _)| *at < to);
                 rewinds += 1;

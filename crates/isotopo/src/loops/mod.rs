@@ -102,6 +102,10 @@ pub struct Limits {
     /// Reeb loops known to be at least this long may come out longer than the shortest (they
     /// still cross their cycle once, so they still define the cross loop).
     pub exact: usize,
+    /// Only the handle's size and its smaller loop matter (simplify): when the cross loop of a
+    /// first, quickly found Reeb loop is shorter than any Reeb loop can be, the shortest Reeb
+    /// loop is not looked for, and the Reeb loop reported is that first one.
+    pub size_only: bool,
 }
 
 impl Limits {
@@ -109,6 +113,7 @@ impl Limits {
         reeb: usize::MAX,
         cross: usize::MAX,
         exact: usize::MAX,
+        size_only: false,
     };
 }
 
@@ -284,8 +289,24 @@ pub fn measure(
     limits: Limits,
 ) -> HandleLoops {
     let vol = top.vol;
-    let reeb = reeb_loop(top, cache, h, conn, limits.reeb, limits.exact);
-    let cross = reeb.as_ref().and_then(|r| cross_loop(top, r, limits.cross));
+    let (mut reeb, mut cross) = (None, None);
+    if limits.size_only && limits.exact > 0 {
+        // A first loop around the cycle is at most half the cut longer than the shortest.
+        let first = reeb_loop(top, cache, h, conn, limits.reeb, 0);
+        if let Some(first) = first {
+            let lower = first.len().saturating_sub(h.located.cut.len() / 2 + 1);
+            let c = cross_loop(top, &first, limits.cross.min(lower));
+            if c.is_some() || lower >= limits.exact {
+                // Either the cross loop is the smaller, or the first loop is already one the
+                // search below would return as it is (and its cross loop was looked for).
+                (reeb, cross) = (Some(first), c);
+            }
+        }
+    }
+    if reeb.is_none() {
+        reeb = reeb_loop(top, cache, h, conn, limits.reeb, limits.exact);
+        cross = reeb.as_ref().and_then(|r| cross_loop(top, r, limits.cross));
+    }
     let describe = |lp: &[Vertex], partner: Option<&[Vertex]>| -> Loop {
         let points: Vec<[f64; 3]> = lp
             .iter()
@@ -294,9 +315,10 @@ pub fn measure(
         Loop {
             length: lp.len(),
             length_mm: polyline_mm(&points, affine),
-            encloses: partner
-                .map(|x| encloses(vol, lp, x))
-                .unwrap_or(Encloses::Void),
+            encloses: match partner {
+                Some(x) => encloses(vol, lp, x),
+                None => encloses_by_fan(vol, lp),
+            },
             vertices: lp.to_vec(),
             points,
         }
@@ -374,6 +396,45 @@ pub fn encloses(vol: &MaskVolume, lp: &[Vertex], partner: &[Vertex]) -> Encloses
     let lin = linking_number(&a, &pushed(vol, partner, true)).abs();
     let lout = linking_number(&a, &pushed(vol, partner, false)).abs();
     if lin > lout {
+        Encloses::Material
+    } else {
+        Encloses::Void
+    }
+}
+
+/// Without a partner loop (its search stopped at a limit): the side of the samples nearest to
+/// the inner part of the loop's spanning fan (the fan about its centroid, shrunk so that the
+/// loop's own edges, which have one end on each side, do not count). A short loop round a tunnel
+/// spans empty space; one round a bar spans material.
+pub fn encloses_by_fan(vol: &MaskVolume, lp: &[Vertex]) -> Encloses {
+    let points = midpoints(lp);
+    let n = points.len() as f64;
+    let c = points.iter().fold([0.0; 3], |s, p| {
+        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
+    });
+    let (mut inside, mut outside) = (0usize, 0usize);
+    const STEPS: usize = 4;
+    for i in 0..points.len() {
+        let (a, b) = (points[i], points[(i + 1) % points.len()]);
+        // Points c + s (a - c) + t (b - c) with s + t <= 3/4.
+        for si in 0..STEPS {
+            for ti in 0..STEPS - si {
+                let (s, t) = (
+                    0.75 * si as f64 / STEPS as f64,
+                    0.75 * ti as f64 / STEPS as f64,
+                );
+                let q: [i64; 3] = std::array::from_fn(|k| {
+                    (c[k] + s * (a[k] - c[k]) + t * (b[k] - c[k])).round() as i64
+                });
+                if vol.get(q[0], q[1], q[2]) {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            }
+        }
+    }
+    if inside > outside {
         Encloses::Material
     } else {
         Encloses::Void

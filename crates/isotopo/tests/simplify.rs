@@ -1,0 +1,331 @@
+//! The guarantees of `simplify`, on synthetic shapes and random volumes, checked against the
+//! independent cell-counting oracle (tests/common/oracle.rs) rather than isotopo's own genus:
+//!
+//! 1. the genus after equals the number of handles kept, and analysing the result finds no
+//!    handle smaller than tau (except those kept on purpose: `--max-ratio`, fill/cut only);
+//! 2. tau = inf leaves genus 0;
+//! 3. b0 and b2 of the solid never change;
+//! 4. every changed sample lies near a closed loop (within the wall's thickness of the loop's
+//!    spanning fan, hence within a quarter of the loop's length plus that thickness);
+//! 5. simplifying the result again changes nothing;
+//! 6. fill-only only sets samples inside, cut-only only sets them outside.
+
+mod common;
+
+use common::oracle::betti;
+use common::{shapes, Rng, BOTH};
+use isotopo::loops::search::Graph;
+use isotopo::loops::{measure, Limits, SliceCache};
+use isotopo::progress::NoProgress;
+use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
+use isotopo::sweep::{find_handles, Axis, MaskVolume};
+use isotopo::topology::cases::cases;
+use isotopo::topology::Connectivity;
+use isotopo::volume::{Affine, InMemoryVolume};
+
+/// Inside samples of a volume, x fastest.
+fn bits(vol: &InMemoryVolume, iso: f64) -> Vec<bool> {
+    common::mask_of(vol, iso)
+}
+
+/// The mask as a volume of ±1 (inside above 0), so it can be swept again.
+fn volume_of(dims: [usize; 3], inside: &[bool]) -> InMemoryVolume {
+    let [nx, ny, _] = dims;
+    InMemoryVolume::from_fn(dims, |x, y, z| {
+        if inside[(z * ny + y) * nx + x] {
+            1.0
+        } else {
+            -1.0
+        }
+    })
+}
+
+fn masks(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> MaskVolume {
+    let mut v = vol.clone();
+    MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, &NoProgress).unwrap()
+}
+
+/// Sizes of the handles an analysis (the sweep and both loops, no limits) finds.
+fn handle_sizes(vol: &InMemoryVolume, conn: Connectivity, axis: Axis) -> Vec<Option<usize>> {
+    let m = masks(vol, 0.0, conn, axis);
+    let r = find_handles(&m, axis, conn, &NoProgress).unwrap();
+    let mut g = Graph::new(&m, cases(conn));
+    let mut cache = SliceCache::new(conn);
+    r.handles
+        .iter()
+        .map(|h| measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, Limits::NONE).size())
+        .collect()
+}
+
+fn options(tau: f64, mode: Mode, conn: Connectivity) -> SimplifyOptions {
+    SimplifyOptions {
+        tau,
+        mode,
+        max_ratio: None,
+        conn,
+    }
+}
+
+/// Runs simplify and checks every guarantee; returns the outcome and the result's mask.
+fn check(
+    name: &str,
+    vol: &InMemoryVolume,
+    iso: f64,
+    axis: Axis,
+    opts: &SimplifyOptions,
+) -> Result<(Outcome, Vec<bool>), String> {
+    let conn = opts.conn;
+    let dims = vol.dims();
+    let [nx, ny, _] = dims;
+    let what = format!(
+        "{name} (conn {}, axis {}, tau {}, {:?})",
+        conn.number(),
+        axis.name(),
+        opts.tau,
+        opts.mode
+    );
+    let before_bits = bits(vol, iso);
+    let before = betti(&before_bits, dims, conn);
+    let mut m = masks(vol, iso, conn, axis);
+    let out = simplify(&mut m, opts, &Affine::IDENTITY, &NoProgress).map_err(|e| e.to_string())?;
+
+    // The edits, applied to the original samples, give the result.
+    let mut after_bits = before_bits.clone();
+    for &([x, y, z], inside) in &out.edits {
+        let i = (z as usize * ny + y as usize) * nx + x as usize;
+        if after_bits[i] == inside {
+            return Err(format!("{what}: edit at {:?} changes nothing", [x, y, z]));
+        }
+        after_bits[i] = inside;
+    }
+    let after = betti(&after_bits, dims, conn);
+
+    // 3. Components and cavities unchanged.
+    if (after.0, after.2) != (before.0, before.2) {
+        return Err(format!(
+            "{what}: b0, b2 went from {:?} to {:?}",
+            (before.0, before.2),
+            (after.0, after.2)
+        ));
+    }
+    // 1. Genus after = handles kept.
+    if after.1 != out.kept.len() as i64 {
+        return Err(format!(
+            "{what}: genus {} -> {} but {} kept",
+            before.1,
+            after.1,
+            out.kept.len()
+        ));
+    }
+    let removed: usize = out.removed.iter().map(|r| r.handles).sum();
+    if before.1 - after.1 != removed as i64 {
+        return Err(format!(
+            "{what}: genus {} -> {} but {} handles reported removed",
+            before.1, after.1, removed
+        ));
+    }
+    // Nothing kept for want of a closure on these small shapes.
+    if let Some(k) = out
+        .kept
+        .iter()
+        .find(|k| !matches!(k.reason, KeepReason::Size | KeepReason::Mode))
+    {
+        return Err(format!("{what}: kept {k:?}"));
+    }
+    // 2. tau = inf removes everything (in both-ways mode).
+    if opts.tau.is_infinite() && opts.mode == Mode::Both && after.1 != 0 {
+        return Err(format!("{what}: genus {} left with tau inf", after.1));
+    }
+    // 1. An analysis of the result finds no handle below tau but those kept on purpose.
+    let on_purpose = out
+        .kept
+        .iter()
+        .filter(|k| k.reason == KeepReason::Mode)
+        .count();
+    let result = volume_of(dims, &after_bits);
+    let small = handle_sizes(&result, conn, axis)
+        .into_iter()
+        .filter(|s| s.is_some_and(|s| (s as f64) < opts.tau))
+        .count();
+    if small > on_purpose {
+        return Err(format!(
+            "{what}: {small} handles below tau in the result, {on_purpose} kept by mode"
+        ));
+    }
+    // 4. Every changed sample is near a closed loop.
+    for &(q, _) in &out.edits {
+        let p = q.map(|c| c as f64);
+        let near = out.removed.iter().any(|r| {
+            let reach = r.thickness + r.length as f64 / 4.0 + 1e-6;
+            r.points.iter().any(|a| {
+                let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() <= reach
+            })
+        });
+        if !near {
+            return Err(format!(
+                "{what}: changed sample {q:?} is far from every loop"
+            ));
+        }
+    }
+    let reported: usize = out.removed.iter().map(|r| r.samples_changed).sum();
+    if out.edits.len() > reported {
+        return Err(format!(
+            "{what}: {} samples changed, walls flipped {reported}",
+            out.edits.len()
+        ));
+    }
+    // 6. Fill only adds, cut only removes.
+    for &(q, inside) in &out.edits {
+        let bad = match opts.mode {
+            Mode::FillOnly => !inside,
+            Mode::CutOnly => inside,
+            Mode::Both => false,
+        };
+        if bad {
+            return Err(format!(
+                "{what}: {q:?} set {}",
+                if inside { "inside" } else { "outside" }
+            ));
+        }
+    }
+    // 5. Idempotent.
+    let mut again = masks(&result, 0.0, conn, axis);
+    let second =
+        simplify(&mut again, opts, &Affine::IDENTITY, &NoProgress).map_err(|e| e.to_string())?;
+    if !second.edits.is_empty() {
+        return Err(format!(
+            "{what}: a second run changed {} samples",
+            second.edits.len()
+        ));
+    }
+    Ok((out, after_bits))
+}
+
+fn expect_ok(r: Result<(Outcome, Vec<bool>), String>) -> Outcome {
+    match r {
+        Ok((o, _)) => o,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+#[test]
+fn tau_inf_removes_every_handle_of_every_shape() {
+    let mut failures = Vec::new();
+    for s in shapes::all() {
+        for conn in BOTH {
+            for axis in [Axis::Z, Axis::X] {
+                if let Err(e) = check(
+                    &s.name,
+                    &s.volume,
+                    0.0,
+                    axis,
+                    &options(f64::INFINITY, Mode::Both, conn),
+                ) {
+                    failures.push(e);
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A torus whose tube is thick (cross loop about 2π·3.5 ≈ 22 edges) with a one-sample bridge
+/// across its hole (a handle of size 4): tau 10 takes the bridge and keeps the torus.
+#[test]
+fn tau_keeps_the_large_handle_and_removes_the_small_one() {
+    let n = 32;
+    let c = (n as f64 - 1.0) / 2.0;
+    let vol = InMemoryVolume::from_fn([n, n, 16], |x, y, z| {
+        let p = [x as f64 - c, y as f64 - c, z as f64 - 7.5];
+        let t = shapes::torus_field(p, 10.0, 3.5);
+        // A bar of single samples along x through the hole, in the torus's mid-plane.
+        let bar = y == 16 && (z == 7 || z == 8) && (x as f64 - c).abs() < 8.0;
+        if bar {
+            1.0
+        } else {
+            t as f32
+        }
+    });
+    for conn in BOTH {
+        let before = betti(&bits(&vol, 0.0), vol.dims(), conn);
+        assert_eq!(before.1, 2, "conn {}: torus + bar", conn.number());
+        let out = expect_ok(check(
+            "torus with a bar",
+            &vol,
+            0.0,
+            Axis::Z,
+            &options(10.0, Mode::Both, conn),
+        ));
+        assert_eq!(out.kept.len(), 1, "conn {}: {:?}", conn.number(), out.kept);
+        assert!(out.kept[0].size.unwrap() >= 10);
+        assert!(out.removed.iter().all(|r| r.size < 10));
+        // The bar is pinched (cut) — filling the torus's hole would take far more.
+        assert!(out
+            .removed
+            .iter()
+            .all(|r| r.operation == isotopo::closure::Operation::Pinch));
+        // Fill only: the bar's handles can only be removed by filling round them.
+        let fill = expect_ok(check(
+            "torus with a bar",
+            &vol,
+            0.0,
+            Axis::Z,
+            &options(10.0, Mode::FillOnly, conn),
+        ));
+        assert!(fill.edits.iter().all(|e| e.1));
+    }
+}
+
+/// Random smoothed noise: hundreds of handles, nested ones, tiny components and cavities.
+#[test]
+fn random_volumes_keep_every_guarantee() {
+    let mut rng = Rng(0x51e1);
+    let mut failures = Vec::new();
+    let mut removed = 0;
+    let mut cases_run = 0;
+    for case in 0..24 {
+        let n = [12, 16, 20][case % 3];
+        let dims = [n, n + 2, n - 1];
+        let v = common::smoothed_noise(dims, 2, &mut rng);
+        let vol = common::volume_from(dims, &v);
+        let iso = common::quantile(&v, 0.35 + 0.3 * rng.f64());
+        let conn = BOTH[case % 2];
+        let tau = [4.5, 8.0, 12.0, f64::INFINITY][(case / 2) % 4];
+        let mode = [Mode::Both, Mode::Both, Mode::FillOnly, Mode::CutOnly][(case / 3) % 4];
+        let axis = [Axis::Z, Axis::Y, Axis::X][case % 3];
+        match check(
+            &format!("noise case {case}"),
+            &vol,
+            iso,
+            axis,
+            &options(tau, mode, conn),
+        ) {
+            Ok((o, _)) => removed += o.removed.len(),
+            Err(e) => failures.push(e),
+        }
+        cases_run += 1;
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_eq!(cases_run, 24);
+    // The cases must exercise something.
+    assert!(removed > 100, "only {removed} handles removed in all cases");
+}
+
+/// `--max-ratio`: a long thin handle (a ring of thin tube, cross loop small, Reeb loop long) is
+/// kept when its ratio exceeds the limit, removed otherwise.
+#[test]
+fn max_ratio_keeps_long_skinny_handles() {
+    let vol = shapes::torus(40, 14.0, 1.6, 0.0, 0.0, 0.0);
+    for conn in BOTH {
+        let mut opts = options(f64::INFINITY, Mode::Both, conn);
+        let out = expect_ok(check("thin ring", &vol, 0.0, Axis::Z, &opts));
+        assert_eq!(out.removed.len(), 1);
+        opts.max_ratio = Some(2.0);
+        let mut m = masks(&vol, 0.0, conn, Axis::Z);
+        let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
+        assert!(out.edits.is_empty());
+        assert_eq!(out.kept.len(), 1);
+        assert_eq!(out.kept[0].reason, KeepReason::Ratio);
+    }
+}
