@@ -158,7 +158,7 @@ pub struct Applied {
 }
 
 /// Vertices a connectivity check may visit before it gives up (and the closure is refused).
-const CONNECT_BUDGET: usize = 1 << 22;
+const CONNECT_BUDGET: usize = 1 << 26;
 
 /// Cubes (lower corners) with a corner among the given samples.
 fn touched_cubes(samples: &[[i64; 3]]) -> Vec<[i64; 3]> {
@@ -252,11 +252,11 @@ fn flip(
 /// handles of the loop's surface only, and at least one; else restores the mask.
 ///
 /// Why the checks suffice: cubes with no flipped corner keep their pieces, and so do pieces of
-/// touched cubes whose corners and loops stay the same; only the others change. If every piece
-/// that goes lies on the loop's surface S and the pieces that come are all connected, the rest
-/// of S hangs on them (it met the pieces that went at crossing points that are still there), so
-/// S stays one surface and the others are untouched; its Euler characteristic, a sum over
-/// pieces, then says how many handles went.
+/// touched cubes whose corners and loops stay the same; only the others change. If some pieces
+/// go, every piece that goes lies on the loop's surface S, and the pieces that come are all
+/// connected, the rest of S hangs on them (it met the pieces that went at crossing points that
+/// are still there), so S stays one surface and the others are untouched; its Euler
+/// characteristic, a sum over pieces, then says how many handles went.
 ///
 /// `cache` holds the surface graph's neighbourhoods of `vol`, and is kept up to date.
 pub fn close(
@@ -268,9 +268,48 @@ pub fn close(
     cache: &mut GraphCache,
 ) -> Option<Applied> {
     let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
+    close_with(vol, conn, lp, op, wall(&points, d), cache)
+}
+
+/// Samples within `reach` of the centroid of a short loop, each of which alone may be a wall:
+/// where a handle is a single corner contact, the fan's own wall can take the wrong one of the
+/// two samples that touch (and cut off a spur), while the other one works.
+pub fn single_sample_walls(lp: &[Vertex], reach: f64) -> Vec<[i64; 3]> {
+    let n = lp.len() as f64;
+    let c = lp.iter().fold([0.0; 3], |s, v| {
+        let m = v.midpoint();
+        [s[0] + m[0] / n, s[1] + m[1] / n, s[2] + m[2] / n]
+    });
+    let mut out = Vec::new();
+    let r = reach.ceil() as i64;
+    let base: [i64; 3] = c.map(|x| x.round() as i64);
+    for dz in -r..=r {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                let q = [base[0] + dx, base[1] + dy, base[2] + dz];
+                let d2: f64 = (0..3).map(|k| (q[k] as f64 - c[k]).powi(2)).sum();
+                if d2 <= reach * reach {
+                    out.push((d2, q));
+                }
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out.into_iter().map(|(_, q)| q).collect()
+}
+
+/// Like [`close`], with the wall's samples given.
+pub fn close_with(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    lp: &[Vertex],
+    op: Operation,
+    wall: Vec<[i64; 3]>,
+    cache: &mut GraphCache,
+) -> Option<Applied> {
     let target = op.target();
     let [nu, nv, nw] = vol.dims.map(|x| x as i64);
-    let changed: Vec<[i64; 3]> = wall(&points, d)
+    let changed: Vec<[i64; 3]> = wall
         .into_iter()
         .filter(|q| (0..3).all(|k| q[k] >= 0) && q[0] < nu && q[1] < nv && q[2] < nw)
         .filter(|q| vol.get(q[0], q[1], q[2]) != target)
@@ -302,22 +341,22 @@ pub fn close(
     }
     // Only pieces that change matter: a wall may brush another surface's piece without changing it.
     let (old_pieces, old_chi4) = only_in(&before, &after);
+    // A wall that changes none of the surface's pieces (a sample set apart from it) would make a
+    // new surface of its own, however the counts come out.
+    if old_pieces.is_empty() {
+        debug_refusal("the wall does not touch the surface", lp, op, &changed);
+        return None;
+    }
     let handles = (new_chi4 - old_chi4) / 8;
     if handles < 1 || (new_chi4 - old_chi4) % 8 != 0 {
-        debug_refusal(
-            &format!("chi4 {:+}", new_chi4 - old_chi4),
-            lp,
-            op,
-            d,
-            &changed,
-        );
+        debug_refusal(&format!("chi4 {:+}", new_chi4 - old_chi4), lp, op, &changed);
         return None;
     }
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
     let same_surface = joined(&mut g, lp, &old_pieces, &near);
     *cache = g.into_cache();
     if !same_surface {
-        debug_refusal("the wall touches another surface", lp, op, d, &changed);
+        debug_refusal("the wall touches another surface", lp, op, &changed);
         return None;
     }
     flip(vol, cache, &changed, target, conn);
@@ -325,7 +364,7 @@ pub fn close(
     let ok = !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near);
     *cache = g.into_cache();
     if !ok {
-        debug_refusal("the surface would fall apart", lp, op, d, &changed);
+        debug_refusal("the surface would fall apart", lp, op, &changed);
         flip(vol, cache, &changed, !target, conn);
         return None;
     }
@@ -337,13 +376,20 @@ pub fn close(
 }
 
 /// With `ISOTOPO_DEBUG` set, says why a closure was refused.
-fn debug_refusal(why: &str, lp: &[Vertex], op: Operation, d: f64, changed: &[[i64; 3]]) {
+fn debug_refusal(why: &str, lp: &[Vertex], op: Operation, changed: &[[i64; 3]]) {
     if std::env::var_os("ISOTOPO_DEBUG").is_some() {
         eprintln!(
-            "closure refused ({why}): loop of {} edges, {op:?}, half-thickness {d:.2}, {} samples",
+            "closure refused ({why}): loop of {} edges, {op:?}, {} samples",
             lp.len(),
             changed.len()
         );
+        if std::env::var_os("ISOTOPO_DEBUG_LOOPS").is_some() {
+            eprintln!(
+                "  loop {:?} changed {:?}",
+                lp.iter().map(|v| (v.p, v.axis)).collect::<Vec<_>>(),
+                changed
+            );
+        }
     }
 }
 

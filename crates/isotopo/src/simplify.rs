@@ -190,6 +190,11 @@ pub struct StageSeconds {
 /// How many full sweeps may run; the last must close nothing.
 const MAX_PASSES: usize = 8;
 
+/// Loops this short that no fan wall closes get a try with single samples near their centroid,
+/// within this reach (voxels; reported as the wall's thickness).
+const SINGLE_SAMPLE_LOOP: usize = 8;
+const SINGLE_SAMPLE_REACH: f64 = 1.8;
+
 /// Wall half-thicknesses tried beyond the base one before giving up on a loop.
 const EXTRA_THICKNESS: [f64; 3] = [0.0, 0.5, 1.0];
 
@@ -468,6 +473,30 @@ pub fn simplify(
                                 break 'loops;
                             }
                             None => refused += 1,
+                        }
+                    }
+                    // A short loop round a corner or edge contact: one sample may do.
+                    if lp.length <= SINGLE_SAMPLE_LOOP {
+                        for q in closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH) {
+                            let [u, v, w] = q;
+                            if vol.get(u, v, w) == op.target() {
+                                continue;
+                            }
+                            let wall = vec![q];
+                            match closure::close_with(
+                                vol,
+                                conn,
+                                &lp.vertices,
+                                op,
+                                wall,
+                                &mut caches.graph,
+                            ) {
+                                Some(applied) => {
+                                    done = Some((which, lp, applied, SINGLE_SAMPLE_REACH));
+                                    break 'loops;
+                                }
+                                None => refused += 1,
+                            }
                         }
                     }
                 }

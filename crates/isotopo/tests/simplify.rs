@@ -124,11 +124,16 @@ fn check(
             before.1, after.1, removed
         ));
     }
-    // Nothing kept for want of a closure on these small shapes.
+    // With both operations allowed, nothing is kept for want of a closure. With fill or cut
+    // only, a handle whose loops can only be closed the other way may be (two linked tori:
+    // filling either hole would join them).
+    let restricted = |r: KeepReason| {
+        r == KeepReason::Mode || (opts.mode != Mode::Both && r == KeepReason::ClosureFailed)
+    };
     if let Some(k) = out
         .kept
         .iter()
-        .find(|k| !matches!(k.reason, KeepReason::Size | KeepReason::Mode))
+        .find(|k| k.reason != KeepReason::Size && !restricted(k.reason))
     {
         return Err(format!("{what}: kept {k:?}"));
     }
@@ -137,11 +142,7 @@ fn check(
         return Err(format!("{what}: genus {} left with tau inf", after.1));
     }
     // 1. An analysis of the result finds no handle below tau but those kept on purpose.
-    let on_purpose = out
-        .kept
-        .iter()
-        .filter(|k| k.reason == KeepReason::Mode)
-        .count();
+    let on_purpose = out.kept.iter().filter(|k| restricted(k.reason)).count();
     let result = volume_of(dims, &after_bits);
     let small = handle_sizes(&result, conn, axis)
         .into_iter()
@@ -232,6 +233,59 @@ fn tau_inf_removes_every_handle_of_every_shape() {
 
 /// A torus whose tube is thick (cross loop about 2π·3.5 ≈ 22 edges) with a one-sample bridge
 /// across its hole (a handle of size 4): tau 10 takes the bridge and keeps the torus.
+/// Fill only and cut only, tau inf: every handle is a tunnel to fill and a bar to cut, so
+/// either way removes it, except filling the holes of two linked tori (which would join them).
+#[test]
+fn fill_only_and_cut_only_on_every_shape() {
+    let mut failures = Vec::new();
+    for s in shapes::all() {
+        for conn in BOTH {
+            for mode in [Mode::FillOnly, Mode::CutOnly] {
+                if let Err(e) = check(
+                    &s.name,
+                    &s.volume,
+                    0.0,
+                    Axis::Z,
+                    &options(f64::INFINITY, mode, conn),
+                ) {
+                    failures.push(e);
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn linked_tori_cannot_be_unlinked_by_filling() {
+    let s = shapes::all()
+        .into_iter()
+        .find(|s| s.name == "two linked tori")
+        .unwrap();
+    for conn in BOTH {
+        let out = expect_ok(check(
+            &s.name,
+            &s.volume,
+            0.0,
+            Axis::Z,
+            &options(f64::INFINITY, Mode::FillOnly, conn),
+        ));
+        assert_eq!(out.kept.len(), 2, "{:?}", out.kept);
+        assert!(out
+            .kept
+            .iter()
+            .all(|k| k.reason == KeepReason::ClosureFailed));
+        let out = expect_ok(check(
+            &s.name,
+            &s.volume,
+            0.0,
+            Axis::Z,
+            &options(f64::INFINITY, Mode::CutOnly, conn),
+        ));
+        assert!(out.kept.is_empty());
+    }
+}
+
 #[test]
 fn tau_keeps_the_large_handle_and_removes_the_small_one() {
     let n = 32;
