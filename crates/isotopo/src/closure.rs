@@ -206,11 +206,60 @@ fn only_in(a: &[(PieceKey, i64)], b: &[(PieceKey, i64)]) -> (Vec<Vertex>, i64) {
     (verts, chi4)
 }
 
-/// Is every one of `others` on the same surface as `from`? Searched near first; then from both
-/// ends with budgets growing fourfold, so a piece on a small separate surface is told apart at
-/// the cost of that small surface, not of the large one.
-fn joined(g: &mut Graph, from: &[Vertex], others: &[Vertex], near: &dyn Region) -> bool {
+/// The cubes within two of a loop's vertices, and a box: where the two sides of a wall are
+/// likely joined. A wall across one loop of a handle cuts the handle's other loop once, so the
+/// rest of that loop joins the wall's two sides.
+///
+/// ```text
+///        wall
+///    ====|====      the other loop goes round the handle and comes back to the
+///   /    |    \     wall's other side: a search along it finds the way round
+///   \____|____/     without exploring the whole surface
+/// ```
+struct Tube {
+    cubes: FastMap<[i64; 3], ()>,
+    lo: [i64; 3],
+    hi: [i64; 3],
+}
+
+impl Tube {
+    fn new(lp: &[Vertex], lo: [i64; 3], hi: [i64; 3]) -> Tube {
+        let mut cubes = FastMap::default();
+        for v in lp {
+            for dz in -2..=2 {
+                for dy in -2..=2 {
+                    for dx in -2..=2 {
+                        cubes.insert([v.p[0] + dx, v.p[1] + dy, v.p[2] + dz], ());
+                    }
+                }
+            }
+        }
+        Tube { cubes, lo, hi }
+    }
+}
+
+impl Region for Tube {
+    fn allows(&self, p: &PieceRef) -> bool {
+        (0..3).all(|k| self.lo[k] <= p.cube[k] && p.cube[k] <= self.hi[k])
+            || self.cubes.contains_key(&p.cube)
+    }
+}
+
+/// Is every one of `others` on the same surface as `from`? Searched near first, then along the
+/// handle's other loop; then from both ends with budgets growing fourfold, so a piece on a small
+/// separate surface is told apart at the cost of that small surface, not of the large one.
+/// (A path found within a region is a path on the surface, so only "no" needs the whole search.)
+fn joined(
+    g: &mut Graph,
+    from: &[Vertex],
+    others: &[Vertex],
+    near: &dyn Region,
+    along: &Tube,
+) -> bool {
     if g.reach(from, others, None, near, usize::MAX) == Reach::Reached {
+        return true;
+    }
+    if !along.cubes.is_empty() && g.reach(from, others, None, along, usize::MAX) == Reach::Reached {
         return true;
     }
     let mut budget = 1 << 10;
@@ -263,12 +312,13 @@ pub fn close(
     vol: &mut MaskVolume,
     conn: Connectivity,
     lp: &[Vertex],
+    partner: &[Vertex],
     op: Operation,
     d: f64,
     cache: &mut GraphCache,
 ) -> Option<Applied> {
     let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
-    close_with(vol, conn, lp, op, wall(&points, d), cache)
+    close_with(vol, conn, lp, partner, op, wall(&points, d), cache)
 }
 
 /// Samples within `reach` of the centroid of a short loop, each of which alone may be a wall:
@@ -303,6 +353,7 @@ pub fn close_with(
     vol: &mut MaskVolume,
     conn: Connectivity,
     lp: &[Vertex],
+    partner: &[Vertex],
     op: Operation,
     wall: Vec<[i64; 3]>,
     cache: &mut GraphCache,
@@ -331,6 +382,7 @@ pub fn close_with(
         hi: hi.map(|x| x + 2),
         filter: |_: &PieceRef| true,
     };
+    let along = Tube::new(partner, lo.map(|x| x - 2), hi.map(|x| x + 2));
     for q in &changed {
         vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);
     }
@@ -353,7 +405,7 @@ pub fn close_with(
         return None;
     }
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
-    let same_surface = joined(&mut g, lp, &old_pieces, &near);
+    let same_surface = joined(&mut g, lp, &old_pieces, &near, &along);
     *cache = g.into_cache();
     if !same_surface {
         debug_refusal("the wall touches another surface", lp, op, &changed);
@@ -361,7 +413,7 @@ pub fn close_with(
     }
     flip(vol, cache, &changed, target, conn);
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
-    let ok = !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near);
+    let ok = !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near, &along);
     *cache = g.into_cache();
     if !ok {
         debug_refusal("the surface would fall apart", lp, op, &changed);

@@ -24,6 +24,7 @@ use crate::error::{Error, Result};
 use crate::loops::search::{FastMap, Graph, GraphCache};
 use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, SliceCache};
 use crate::progress::Progress;
+use crate::surface::Vertex;
 use crate::sweep::{Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::genus::BBox;
@@ -465,9 +466,22 @@ pub fn simplify(
                 let mut done = None;
                 'loops: for &(which, lp) in &candidates {
                     let op = operation_for(lp);
+                    let partner: &[Vertex] = match which {
+                        LoopKind::Reeb => l.cross.as_ref(),
+                        LoopKind::Cross => l.reeb.as_ref(),
+                    }
+                    .map_or(&[], |x| &x.vertices);
                     for extra in EXTRA_THICKNESS {
                         let d = base_thickness(op, conn) + extra;
-                        match closure::close(vol, conn, &lp.vertices, op, d, &mut caches.graph) {
+                        match closure::close(
+                            vol,
+                            conn,
+                            &lp.vertices,
+                            partner,
+                            op,
+                            d,
+                            &mut caches.graph,
+                        ) {
                             Some(applied) => {
                                 done = Some((which, lp, applied, d));
                                 break 'loops;
@@ -487,6 +501,7 @@ pub fn simplify(
                                 vol,
                                 conn,
                                 &lp.vertices,
+                                partner,
                                 op,
                                 wall,
                                 &mut caches.graph,
