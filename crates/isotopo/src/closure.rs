@@ -118,13 +118,18 @@ pub fn point_triangle_dist2(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) 
     dot(d, d)
 }
 
+/// The mean of the points: the apex of a loop's spanning fan.
+pub fn centroid(points: &[[f64; 3]]) -> [f64; 3] {
+    let n = points.len() as f64;
+    points.iter().fold([0.0; 3], |s, p| {
+        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
+    })
+}
+
 /// Samples (volume-local coordinates) within `d` of the fan spanning the closed polyline
 /// `points` about its centroid.
 pub fn wall(points: &[[f64; 3]], d: f64) -> Vec<[i64; 3]> {
-    let n = points.len() as f64;
-    let c = points.iter().fold([0.0; 3], |s, p| {
-        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
-    });
+    let c = centroid(points);
     let d2 = d * d + 1e-9;
     let mut out: FastMap<[i64; 3], ()> = FastMap::default();
     for i in 0..points.len() {
@@ -325,11 +330,8 @@ pub fn close(
 /// where a handle is a single corner contact, the fan's own wall can take the wrong one of the
 /// two samples that touch (and cut off a spur), while the other one works.
 pub fn single_sample_walls(lp: &[Vertex], reach: f64) -> Vec<[i64; 3]> {
-    let n = lp.len() as f64;
-    let c = lp.iter().fold([0.0; 3], |s, v| {
-        let m = v.midpoint();
-        [s[0] + m[0] / n, s[1] + m[1] / n, s[2] + m[2] / n]
-    });
+    let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
+    let c = centroid(&points);
     let mut out = Vec::new();
     let r = reach.ceil() as i64;
     let base: [i64; 3] = c.map(|x| x.round() as i64);

@@ -408,10 +408,7 @@ pub fn encloses(vol: &MaskVolume, lp: &[Vertex], partner: &[Vertex]) -> Encloses
 /// spans empty space; one round a bar spans material.
 pub fn encloses_by_fan(vol: &MaskVolume, lp: &[Vertex]) -> Encloses {
     let points = midpoints(lp);
-    let n = points.len() as f64;
-    let c = points.iter().fold([0.0; 3], |s, p| {
-        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
-    });
+    let c = crate::closure::centroid(&points);
     let (mut inside, mut outside) = (0usize, 0usize);
     const STEPS: usize = 4;
     for i in 0..points.len() {
