@@ -43,6 +43,8 @@ struct SimplifyArgs {
     input: Input,
     #[command(flatten)]
     surface: SurfaceArgs,
+    #[command(flatten)]
+    window: WindowArgs,
     /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
     /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
     #[arg(long)]
@@ -82,6 +84,8 @@ struct AnalyzeArgs {
     input: Input,
     #[command(flatten)]
     surface: SurfaceArgs,
+    #[command(flatten)]
+    window: WindowArgs,
     /// Sweep direction.
     #[arg(long, value_enum, default_value = "z")]
     axis: AxisArg,
@@ -131,6 +135,8 @@ struct HandlesArgs {
     input: Input,
     #[command(flatten)]
     surface: SurfaceArgs,
+    #[command(flatten)]
+    window: WindowArgs,
     /// Sweep direction.
     #[arg(long, value_enum, default_value = "z")]
     axis: AxisArg,
@@ -142,6 +148,16 @@ struct HandlesArgs {
     all: bool,
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// How much of the volume stays in memory.
+#[derive(Args, Clone)]
+struct WindowArgs {
+    /// Planes of the volume held in memory at once (as inside bits); the rest wait in a scratch
+    /// file (in TMPDIR) and are read back when a long handle needs them. 0: the whole volume.
+    /// Default: as many as fit in 16 MiB, the whole volume when it fits.
+    #[arg(long, value_name = "N")]
+    max_slices: Option<usize>,
 }
 
 /// Which isosurface: the isovalue, the inside side and the digital connectivity.
@@ -324,7 +340,27 @@ fn parse_endian(s: &str) -> std::result::Result<Endian, String> {
     }
 }
 
+/// glibc serves large allocations from `mmap` only until the first one is freed, then raises its
+/// threshold (up to 32 MiB) and keeps freed blocks in the heap: the loop searches' arrays, grown
+/// and dropped handle after handle, would then hold the peak resident set far above what is in
+/// use. A fixed threshold keeps large blocks in `mmap`, so freeing them returns the memory.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn return_freed_memory() {
+    extern "C" {
+        fn mallopt(param: i32, value: i32) -> i32;
+    }
+    const M_MMAP_THRESHOLD: i32 = -3;
+    // SAFETY: mallopt only changes allocator settings; called before any thread starts.
+    unsafe {
+        mallopt(M_MMAP_THRESHOLD, 256 << 10);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn return_freed_memory() {}
+
 fn main() -> ExitCode {
+    return_freed_memory();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(a) => cmd_info(a),
@@ -635,8 +671,14 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
     let info = reader.info().clone();
     let bars = progress::Bars::new(a.quiet || a.json);
     let t = Instant::now();
-    let masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
-    let report = isotopo::sweep::find_handles(&masks, axis, opts.connectivity, &bars)?;
+    let mut masks = isotopo::sweep::MaskVolume::from_reader(
+        reader.as_mut(),
+        &opts,
+        axis,
+        a.window.max_slices,
+        &bars,
+    )?;
+    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, &bars)?;
     let secs = t.elapsed().as_secs_f64();
     let handles = isotopo::report::handles_json(&report, &info);
     if a.json {
@@ -745,17 +787,23 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
-    let masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
-    let report = isotopo::sweep::find_handles(&masks, axis, opts.connectivity, &bars)?;
+    let mut masks = isotopo::sweep::MaskVolume::from_reader(
+        reader.as_mut(),
+        &opts,
+        axis,
+        a.window.max_slices,
+        &bars,
+    )?;
+    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, &bars)?;
     let t_sweep = t.elapsed().as_secs_f64();
     let loops = isotopo::loops::measure_all(
-        &masks,
+        &mut masks,
         &report.handles,
         opts.connectivity,
         &info.affine,
         limits,
         &bars,
-    );
+    )?;
     let secs = t.elapsed().as_secs_f64();
     if let Some(p) = &a.loops {
         isotopo::report::write_loops(p, &loops, &info.affine)?;
@@ -1002,7 +1050,13 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     let values = WallValues::new(info.dtype, &opts.classifier(&info));
     let bars = progress::Bars::new(a.quiet || a.json);
     let t0 = Instant::now();
-    let mut masks = isotopo::sweep::MaskVolume::from_reader(reader.as_mut(), &opts, axis, &bars)?;
+    let mut masks = isotopo::sweep::MaskVolume::from_reader(
+        reader.as_mut(),
+        &opts,
+        axis,
+        a.window.max_slices,
+        &bars,
+    )?;
     let t_read = t0.elapsed().as_secs_f64();
     let before = masks.genus(opts.connectivity)?;
     let t = Instant::now();

@@ -224,7 +224,7 @@ fn memo_key(h: &LocatedHandle) -> u64 {
 }
 
 /// Neighbourhoods kept between handles before starting afresh (memory).
-const GRAPH_CACHE_LIMIT: usize = 1 << 21;
+const GRAPH_CACHE_LIMIT: usize = 1 << 18;
 
 impl Caches {
     /// Measures the handles one step of the sweep found.
@@ -408,6 +408,7 @@ pub fn simplify(
             let s = sweeper.next;
             let t = std::time::Instant::now();
             let n = sweeper.step(vol)?;
+            vol.follow_sweep(sweeper.next)?;
             seconds.sweep += t.elapsed().as_secs_f64();
             let first_visit = s > high;
             if first_visit {
@@ -423,6 +424,7 @@ pub fn simplify(
                 .iter()
                 .map(|(_, h)| h.clone())
                 .collect();
+            sweeper.release_handles();
             if pass == 1 && first_visit {
                 intra_ribbon += new
                     .iter()
@@ -562,9 +564,11 @@ pub fn simplify(
                 sweeper.rewind(vol, to);
                 kept.retain(|(at, _)| *at < to);
                 rewinds += 1;
+                vol.follow_sweep(sweeper.next)?;
             }
         }
         progress.finish();
+        vol.follow_sweep(sweeper.next)?;
         if removed.len() == closed_before {
             break;
         }
@@ -578,11 +582,18 @@ pub fn simplify(
             break;
         }
     }
-    let mut edits: Vec<Edit> = original
-        .into_iter()
-        .filter(|(q, was)| vol.get(q[0], q[1], q[2]) != *was)
-        .map(|(q, was)| (vol.frame.to_original_i(q), !was))
-        .collect();
+    // Samples that end on the other side, plane by plane (out of core, each read once).
+    let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
+    flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
+    let mut edits: Vec<Edit> = Vec::new();
+    for same_plane in flipped.chunk_by(|a, b| a.0[2] == b.0[2]) {
+        let plane = vol.plane_once(same_plane[0].0[2]);
+        for &(q, was) in same_plane {
+            if plane.get(q[0] as isize, q[1] as isize) != was {
+                edits.push((vol.frame.to_original_i(q), !was));
+            }
+        }
+    }
     edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
     Ok(Outcome {
         removed,

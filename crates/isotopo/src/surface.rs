@@ -77,14 +77,15 @@ pub struct PieceRef {
 pub const MAX_DEGREE: usize = 12;
 
 /// The neighbourhood of a crossing point, stored compactly (a search may number millions):
-/// neighbours as packed keys, pieces as one byte each (which of the four cubes around the edge,
-/// which piece, which tube triangle).
+/// neighbours and pieces as one byte each — a neighbour lies in one of the four cubes around
+/// the edge, so it is the centre moved by -1, 0 or 1 along each axis, plus its own axis; a
+/// piece is which of those cubes, which piece, which tube triangle.
 #[derive(Clone, Copy, Debug)]
 pub struct Around {
     center: Vertex,
     /// Number of neighbours (4, or more on a tube).
     pub n: usize,
-    nbr: [u64; MAX_DEGREE],
+    nbr: [u8; MAX_DEGREE],
     piece: [u8; MAX_DEGREE],
     /// Bit k: the edge to neighbour k is a diagonal through a tube, not a segment on a face.
     diagonal: u16,
@@ -104,13 +105,27 @@ impl Around {
     /// Neighbour `k`, clockwise seen from outside.
     #[inline]
     pub fn nbr(&self, k: usize) -> Vertex {
-        Vertex::from_key(self.nbr[k])
+        let c = self.nbr[k];
+        let (d, axis) = (c / 3, c % 3);
+        let mut p = self.center.p;
+        p[0] += (d % 3) as i64 - 1;
+        p[1] += (d / 3 % 3) as i64 - 1;
+        p[2] += (d / 9) as i64 - 1;
+        Vertex { p, axis }
     }
 
-    /// The packed key of neighbour `k`.
+    /// The byte that stands for neighbour `w` of `center` (`None` if `w` is not that close).
     #[inline]
-    pub fn nbr_key(&self, k: usize) -> u64 {
-        self.nbr[k]
+    fn code(center: Vertex, w: Vertex) -> Option<u8> {
+        let mut d = 0u8;
+        for k in (0..3).rev() {
+            let x = w.p[k] - center.p[k];
+            if !(-1..=1).contains(&x) {
+                return None;
+            }
+            d = d * 3 + (x + 1) as u8;
+        }
+        Some(d * 3 + w.axis)
     }
 
     pub fn neighbours(&self) -> Vec<Vertex> {
@@ -145,8 +160,8 @@ impl Around {
     }
 
     pub fn position(&self, w: Vertex) -> Option<usize> {
-        let kw = w.key();
-        self.nbr[..self.n].iter().position(|&x| x == kw)
+        let c = Around::code(self.center, w)?;
+        self.nbr[..self.n].iter().position(|&x| x == c)
     }
 }
 
@@ -258,7 +273,7 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
     let mut cur = links[0];
     for k in 0..n {
         chain[k] = cur.2;
-        out.nbr[k] = cur.1;
+        out.nbr[k] = Around::code(v, Vertex::from_key(cur.1))?;
         if cur.3 {
             out.diagonal |= 1 << k;
         }

@@ -21,9 +21,9 @@ fn analyze(
     axis: Axis,
 ) -> (MaskVolume, HandleReport, Vec<HandleLoops>) {
     let mut v = vol.clone();
-    let masks =
-        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, &NoProgress).unwrap();
-    let r = find_handles(&masks, axis, conn, &NoProgress).unwrap();
+    let mut masks =
+        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, None, &NoProgress).unwrap();
+    let r = find_handles(&mut masks, axis, conn, &NoProgress).unwrap();
     let loops = {
         let mut g = Graph::new(&masks, cases(conn));
         let mut cache = SliceCache::new(conn);

@@ -14,13 +14,15 @@
 
 pub mod search;
 
+use crate::error::Result;
 use crate::surface::{PieceRef, Vertex};
-use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
+use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, Node, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
 use search::{
-    short_odd_loop, shortest_odd_loop, Everywhere, FastMap, Graph, InBox, PieceSet, Region,
+    odd_loop_below, odd_simple_loop, path_to, short_odd_loop, shortest_odd_loop, Everywhere,
+    FastMap, Graph, InBox, PieceSet, Region,
 };
 
 /// What a loop's spanning disk would pass through.
@@ -135,34 +137,83 @@ pub fn map_vertex(v: Vertex, from: &Frame, to: &Frame) -> Vertex {
     }
 }
 
-/// Surfels of the swept volume's slices, built when first needed and kept for later handles.
+/// Surfels of the swept volume's slices, built when first needed and kept for later handles,
+/// within a memory budget (the least recently used go first).
 pub struct SliceCache {
     conn: Connectivity,
-    slices: FastMap<i64, SliceSurfels>,
+    slices: FastMap<i64, (SliceSurfels, u64)>,
+    /// Use counter: the stamp of the latest `ensure`.
+    clock: u64,
+    bytes: usize,
 }
 
-/// Slices a cache keeps between handles before starting afresh (they are rebuilt when needed
-/// again); one handle's cycle may need more.
-const SLICE_CACHE_LIMIT: usize = 64;
+/// Memory the slices of a cache may take between handles (one handle's cycle may need more).
+const SLICE_CACHE_BYTES: usize = 24 << 20;
+
+/// Approximate heap size of a slice's surfels.
+fn slice_bytes(s: &SliceSurfels) -> usize {
+    s.cubes.capacity() * std::mem::size_of::<crate::topology::slice::Cube>()
+        + s.piece_ribbon.capacity() * 4
+        + (s.bottom.capacity() + s.top.capacity() + s.row_start.capacity()) * 4
+        + s.ribbons.capacity() * std::mem::size_of::<crate::topology::slice::Ribbon>()
+}
 
 impl SliceCache {
     pub fn new(conn: Connectivity) -> SliceCache {
         SliceCache {
             conn,
             slices: FastMap::default(),
+            clock: 0,
+            bytes: 0,
         }
     }
 
     fn ensure(&mut self, vol: &MaskVolume, s: i64) {
         let conn = self.conn;
-        self.slices
-            .entry(s)
-            .or_insert_with(|| SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn));
+        self.clock += 1;
+        let clock = self.clock;
+        match self.slices.entry(s) {
+            std::collections::hash_map::Entry::Occupied(mut e) => e.get_mut().1 = clock,
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+                self.bytes += slice_bytes(&sl);
+                e.insert((sl, clock));
+            }
+        }
+    }
+
+    fn get(&self, s: i64) -> Option<&SliceSurfels> {
+        self.slices.get(&s).map(|(sl, _)| sl)
+    }
+
+    /// Between handles: forgets the least recently used slices beyond the budget.
+    fn trim(&mut self) {
+        if self.bytes <= SLICE_CACHE_BYTES {
+            return;
+        }
+        let mut by_age: Vec<(u64, i64)> = self.slices.iter().map(|(&s, (_, t))| (*t, s)).collect();
+        by_age.sort_unstable();
+        for (_, s) in by_age {
+            if self.bytes <= SLICE_CACHE_BYTES / 2 {
+                break;
+            }
+            if let Some((sl, _)) = self.slices.remove(&s) {
+                self.bytes -= slice_bytes(&sl);
+            }
+        }
     }
 
     /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there).
     pub fn invalidate(&mut self, w0: i64, w1: i64) {
-        self.slices.retain(|&s, _| s + 1 < w0 || s > w1);
+        let mut freed = 0;
+        self.slices.retain(|&s, (sl, _)| {
+            let keep = s + 1 < w0 || s > w1;
+            if !keep {
+                freed += slice_bytes(sl);
+            }
+            keep
+        });
+        self.bytes -= freed;
     }
 }
 
@@ -173,10 +224,28 @@ struct CycleRegion<'c> {
     ribbons: FastMap<i64, Vec<u32>>,
 }
 
+impl CycleRegion<'_> {
+    /// The region of a top-level handle's cycle (building its slices' surfels).
+    fn new<'c>(vol: &MaskVolume, cache: &'c mut SliceCache, h: &Handle) -> CycleRegion<'c> {
+        let mut ribbons: FastMap<i64, Vec<u32>> = FastMap::default();
+        cache.trim();
+        for n in h
+            .located
+            .cycle
+            .iter()
+            .filter(|n| n.kind == NodeKind::Ribbon)
+        {
+            ribbons.entry(n.level as i64).or_default().push(n.local);
+            cache.ensure(vol, n.level as i64);
+        }
+        CycleRegion { cache, ribbons }
+    }
+}
+
 impl Region for CycleRegion<'_> {
     fn allows(&self, p: &PieceRef) -> bool {
         let s = p.cube[2];
-        let (Some(ribbons), Some(sl)) = (self.ribbons.get(&s), self.cache.slices.get(&s)) else {
+        let (Some(ribbons), Some(sl)) = (self.ribbons.get(&s), self.cache.get(s)) else {
             return false;
         };
         match sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32) {
@@ -185,6 +254,149 @@ impl Region for CycleRegion<'_> {
             None => false,
         }
     }
+}
+
+/// A lower bound on the length of any loop round a top-level cycle: it reaches the cycle's
+/// lowest and highest ribbons, and an edge moves at most one plane along the sweep, so it is at
+/// least twice their distance (less one plane each way).
+fn reeb_lower_bound(h: &Handle) -> usize {
+    if !matches!(h.located.volume, CycleVolume::Top) {
+        return 0;
+    }
+    let levels = h
+        .located
+        .cycle
+        .iter()
+        .filter(|n| n.kind == NodeKind::Ribbon)
+        .map(|n| n.level as i64);
+    let (lo, hi) = levels.fold((i64::MAX, i64::MIN), |(a, b), l| (a.min(l), b.max(l)));
+    if lo > hi {
+        return 0;
+    }
+    (2 * (hi - lo - 1)).max(0) as usize
+}
+
+/// One ribbon of the swept volume, as a region.
+struct OneRibbon<'c> {
+    cache: &'c SliceCache,
+    slice: i64,
+    ribbon: u32,
+}
+
+impl Region for OneRibbon<'_> {
+    fn allows(&self, p: &PieceRef) -> bool {
+        if p.cube[2] != self.slice {
+            return false;
+        }
+        let Some(sl) = self.cache.get(self.slice) else {
+            return false;
+        };
+        sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32)
+            .is_some_and(|q| {
+                sl.piece_ribbon[sl.cubes[q].first_piece as usize + p.index as usize] == self.ribbon
+            })
+    }
+}
+
+/// Vertices a path through one ribbon may visit before the chain gives up.
+const RIBBON_PATH_BUDGET: usize = 1 << 16;
+
+/// A first loop around a top-level Reeb cycle, chained ribbon by ribbon: from a vertex of the
+/// cut, the shortest path through each ribbon of the cycle to the contour it shares with the
+/// next, until the cut is reached again from its other side; then along the cut to the start.
+///
+/// ```text
+///        R2 ----- C2 ----- R3           each ribbon Ri is crossed from the contour it
+///        |                  |           shares with R(i-1) to the one it shares with
+///        C1                C3           R(i+1): a few edges each, so the whole loop
+///        |                  |           costs about its length, where a search around
+///        R1 -- C0 (cut) -- R4           the cycle visits every ribbon's whole area.
+/// ```
+///
+/// Not the shortest loop, but it goes once round the cycle, which is all the cross loop needs.
+/// `None` if the cycle is not top-level or a path is not found (the caller searches instead).
+fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Vec<Vertex>> {
+    let l = &h.located;
+    if !matches!(l.volume, CycleVolume::Top) || l.cut.len() < 2 {
+        return None;
+    }
+    let vol = top.vol;
+    let cycle = &l.cycle;
+    let n = cycle.len();
+    if n < 4 || !n.is_multiple_of(2) {
+        return None;
+    }
+    // Surfels of the slices on either side of the cut's plane now; the others as the chain
+    // reaches them (a tall cycle's slices may not all fit in the cache's budget at once).
+    cache.trim();
+    for k in [l.cut[0].p[2] - 1, l.cut[0].p[2]] {
+        cache.ensure(vol, k);
+    }
+    let start = l.cut[0];
+    let has_piece_in = |g: &mut Graph, cache: &SliceCache, i: u32, r: &Node| -> bool {
+        let one = OneRibbon {
+            cache,
+            slice: r.level as i64,
+            ribbon: r.local,
+        };
+        let a = g.at(i);
+        (0..a.n).any(|k| one.allows(&a.piece(k)))
+    };
+    // The cut's contour node: the contour in the cut's plane between two ribbons that the cut's
+    // first vertex touches. Nodes alternate ribbon, contour; the cycle closes from its last
+    // node (a contour) to its first (a ribbon).
+    let si = top.index(start)?;
+    let at = (0..n).find(|&i| {
+        let c = &cycle[i];
+        c.kind == NodeKind::Contour
+            && c.level as i64 == start.p[2]
+            && start.axis != 2
+            && has_piece_in(top, cache, si, &cycle[(i + 1) % n])
+            && has_piece_in(top, cache, si, &cycle[(i + n - 1) % n])
+    })?;
+    // Ribbons in order after the cut's contour.
+    let ribbons: Vec<Node> = (1..n).step_by(2).map(|k| cycle[(at + k) % n]).collect();
+    if ribbons.iter().any(|r| r.kind != NodeKind::Ribbon) {
+        return None;
+    }
+    let on_cut: FastMap<u64, usize> = l
+        .cut
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (v.key(), i))
+        .collect();
+    let mut walk = vec![start];
+    let mut cur = start;
+    for (i, r) in ribbons.iter().enumerate() {
+        cache.trim();
+        cache.ensure(vol, r.level as i64);
+        if let Some(nr) = ribbons.get(i + 1) {
+            cache.ensure(vol, nr.level as i64);
+        }
+        let cache: &SliceCache = cache;
+        let region = OneRibbon {
+            cache,
+            slice: r.level as i64,
+            ribbon: r.local,
+        };
+        let next = ribbons.get(i + 1);
+        let mut is_target = |g: &mut Graph, vi: u32| match next {
+            Some(nr) => has_piece_in(g, cache, vi, nr),
+            None => on_cut.contains_key(&g.vertex(vi).key()) && g.vertex(vi) != start,
+        };
+        let path = path_to(top, cur, &region, &mut is_target, RIBBON_PATH_BUDGET)?;
+        walk.extend_from_slice(&path[1..]);
+        cur = *path.last()?;
+    }
+    // Back along the cut, the shorter way, to the start (excluded: the walk is closed).
+    let (m, j) = (l.cut.len(), *on_cut.get(&cur.key())?);
+    let step = if j <= m - j { m - 1 } else { 1 };
+    let mut i = (j + step) % m;
+    while i != 0 {
+        walk.push(l.cut[i]);
+        i = (i + step) % m;
+    }
+    odd_simple_loop(top, &l.cut, walk)
 }
 
 /// Pieces of the given ribbons of a mini-volume's cycle, within the original slice.
@@ -235,15 +447,7 @@ pub fn reeb_loop(
     let l = &h.located;
     match &l.volume {
         CycleVolume::Top => {
-            let mut ribbons: FastMap<i64, Vec<u32>> = FastMap::default();
-            if cache.slices.len() > SLICE_CACHE_LIMIT {
-                cache.slices.clear();
-            }
-            for n in l.cycle.iter().filter(|n| n.kind == NodeKind::Ribbon) {
-                ribbons.entry(n.level as i64).or_default().push(n.local);
-                cache.ensure(vol, n.level as i64);
-            }
-            let region = CycleRegion { cache, ribbons };
+            let region = CycleRegion::new(vol, cache, h);
             short_odd_loop(top, &l.cut, &region, limit, exact_below)
         }
         CycleVolume::Mini(mini) => {
@@ -279,6 +483,46 @@ pub fn cross_loop(top: &mut Graph, reeb: &[Vertex], limit: usize) -> Option<Vec<
     shortest_odd_loop(top, reeb, &Everywhere, limit)
 }
 
+/// For simplify, where only the handle's size matters: a first loop round the cycle, found
+/// cheaply, and a lower bound on the length of any (`usize::MAX` when the loop is the shortest).
+///
+/// - A tall cycle's loops are long whatever they are (see [`reeb_lower_bound`]): chain one.
+/// - Otherwise a search of the cycle's ribbons no deeper than `limits.exact` either finds the
+///   loop (short: then it is exact) or shows that none is that short: then chain one.
+/// - Failing both, a first loop found by searching the whole cycle, which is at most half the cut
+///   longer than the shortest.
+fn first_reeb_loop(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    h: &Handle,
+    conn: Connectivity,
+    limits: Limits,
+) -> Option<(Vec<Vertex>, usize)> {
+    let tall = reeb_lower_bound(h);
+    if tall >= limits.exact {
+        if let Some(chained) = chained_reeb_loop(top, cache, h) {
+            return Some((chained, tall));
+        }
+    } else if matches!(h.located.volume, CycleVolume::Top) {
+        let vol = top.vol;
+        let region = CycleRegion::new(vol, cache, h);
+        match odd_loop_below(top, &h.located.cut, &region, limits.exact) {
+            // The shortest: nothing to refine, every cross loop up to the limit matters.
+            Some(Some(short)) => return Some((short, usize::MAX)),
+            Some(None) => {
+                if let Some(chained) = chained_reeb_loop(top, cache, h) {
+                    return Some((chained, limits.exact));
+                }
+            }
+            None => {}
+        }
+    }
+    reeb_loop(top, cache, h, conn, limits.reeb, 0).map(|f| {
+        let lower = f.len().saturating_sub(h.located.cut.len() / 2 + 1);
+        (f, lower)
+    })
+}
+
 /// Measures both loops of a handle of the volume whose surface graph is `top`.
 pub fn measure(
     top: &mut Graph,
@@ -291,10 +535,7 @@ pub fn measure(
     let vol = top.vol;
     let (mut reeb, mut cross) = (None, None);
     if limits.size_only && limits.exact > 0 {
-        // A first loop around the cycle is at most half the cut longer than the shortest.
-        let first = reeb_loop(top, cache, h, conn, limits.reeb, 0);
-        if let Some(first) = first {
-            let lower = first.len().saturating_sub(h.located.cut.len() / 2 + 1);
+        if let Some((first, lower)) = first_reeb_loop(top, cache, h, conn, limits) {
             let c = cross_loop(top, &first, limits.cross.min(lower));
             if c.is_some() || lower >= limits.exact {
                 // Either the cross loop is the smaller, or the first loop is already one the
@@ -488,36 +729,62 @@ pub fn linking_number(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 /// Vertices a worker's surface graph keeps between handles before starting afresh.
 const GRAPH_CACHE_LIMIT: usize = 1 << 21;
 
+/// Handles measured between two moves of an out-of-core volume's window.
+const MEASURE_BATCH: usize = 64;
+
 /// Measures every handle of a sweep's report, in parallel (each worker keeps its own cache of
-/// the surface graph).
+/// the surface graph). Out of core, the handles go in batches up the sweep axis, and between
+/// batches the volume keeps only the planes the next batch starts from.
 pub fn measure_all(
-    vol: &MaskVolume,
+    vol: &mut MaskVolume,
     handles: &[Handle],
     conn: Connectivity,
     affine: &Affine,
     limits: Limits,
     progress: &dyn crate::progress::Progress,
-) -> Vec<HandleLoops> {
+) -> Result<Vec<HandleLoops>> {
     use rayon::prelude::*;
     let table = cases(conn);
     progress.start("loops", handles.len() as u64);
-    let out = handles
-        .par_iter()
-        .map_init(
-            || (Graph::new(vol, table), SliceCache::new(conn)),
-            |(g, cache), h| {
-                // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
-                if g.len() > GRAPH_CACHE_LIMIT {
-                    g.clear();
-                }
-                let l = measure(g, cache, h, conn, affine, limits);
-                progress.advance(1);
-                l
-            },
-        )
-        .collect();
+    // Up the sweep axis: by the handle's highest slice (where its cycle closed).
+    let w_axis = vol.frame.uvw[2];
+    let w_offset = vol.frame.offset[w_axis];
+    let top_slice = |h: &Handle| h.located.bbox.max[w_axis] - w_offset;
+    let mut order: Vec<usize> = (0..handles.len()).collect();
+    order.sort_by_key(|&i| top_slice(&handles[i]));
+    let mut out: Vec<Option<HandleLoops>> = vec![None; handles.len()];
+    let batch = if vol.out_of_core() {
+        MEASURE_BATCH
+    } else {
+        handles.len().max(1)
+    };
+    for ids in order.chunks(batch) {
+        vol.follow_sweep(top_slice(&handles[ids[0]]))?;
+        let frozen: &MaskVolume = vol;
+        let measured: Vec<HandleLoops> = ids
+            .par_iter()
+            .map_init(
+                || (Graph::new(frozen, table), SliceCache::new(conn)),
+                |(g, cache), &i| {
+                    // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
+                    if g.len() > GRAPH_CACHE_LIMIT {
+                        g.clear();
+                    }
+                    let l = measure(g, cache, &handles[i], conn, affine, limits);
+                    progress.advance(1);
+                    l
+                },
+            )
+            .collect();
+        for (&i, l) in ids.iter().zip(measured) {
+            out[i] = Some(l);
+        }
+    }
     progress.finish();
-    out
+    Ok(out
+        .into_iter()
+        .map(|l| l.expect("every handle measured"))
+        .collect())
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ pub mod mini;
 pub mod planes;
 pub mod reeb;
 
-pub use planes::{Axis, Frame, MaskVolume};
+pub use planes::{window_for, Axis, Frame, MaskVolume, MIN_WINDOW};
 pub use reeb::{Node, NodeKind, ReebGraph};
 
 use crate::error::{Error, Result};
@@ -244,6 +244,17 @@ impl Sweeper {
     /// Has every slice been processed?
     pub fn done(&self, vol: &MaskVolume) -> bool {
         self.next >= vol.dims[2] as i64
+    }
+
+    /// Lets go of the cycles, cuts and mini-volumes of the handles found so far (a caller that
+    /// took what it needed from them, like simplify; a mini-volume can take megabytes, and a long
+    /// volume has thousands of handles). They stay counted, so rewinding works as before.
+    pub fn release_handles(&mut self) {
+        for (_, h) in &mut self.handles {
+            h.cycle = Vec::new();
+            h.cut = Vec::new();
+            h.volume = CycleVolume::Top;
+        }
     }
 
     /// Handles found so far (slice where found, handle).
@@ -499,7 +510,7 @@ impl Sweeper {
 
 /// Sweeps one volume from end to end.
 fn sweep_level(
-    vol: &MaskVolume,
+    vol: &mut MaskVolume,
     conn: Connectivity,
     depth: u32,
     probe: Option<Probe>,
@@ -511,6 +522,7 @@ fn sweep_level(
     }
     while !sweeper.done(vol) {
         sweeper.step(vol)?;
+        vol.follow_sweep(sweeper.next)?;
         if depth == 0 {
             progress.advance(1);
             progress.message(&format!("{} handles", sweeper.handles.len()));
@@ -537,7 +549,7 @@ fn intra_ribbon(
     // Cube i spans samples i-1 and i (padded indices).
     let u = (rb.min[0] as i64 - 1, rb.max[0] as i64);
     let v = (rb.min[1] as i64 - 1, rb.max[1] as i64);
-    let mini = mini::build(vol, s, u, v, conn);
+    let mut mini = mini::build(vol, s, u, v, conn);
     // Probe: a piece of this ribbon, in mini coordinates (u', v', w') = (v, w, u).
     let cube = cur.cubes[rb.first_cube as usize];
     let case = &table[cube.case as usize];
@@ -558,7 +570,7 @@ fn intra_ribbon(
         corner: c[1] | (c[2] << 1) | (c[0] << 2),
     };
     let level = sweep_level(
-        &mini.volume,
+        &mut mini.volume,
         conn,
         1,
         Some(probe),
@@ -689,7 +701,7 @@ pub struct HandleReport {
 
 /// Sweeps `vol` (already arranged for `axis`) and locates every handle.
 pub fn find_handles(
-    vol: &MaskVolume,
+    vol: &mut MaskVolume,
     axis: Axis,
     conn: Connectivity,
     progress: &dyn Progress,

@@ -11,12 +11,14 @@
 //!   --axis y:  (u, v, w) = (z, x, y)
 //! ```
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::topology::cases::Connectivity;
 use crate::topology::genus::GenusReport;
 use crate::topology::{PlaneMask, SurfaceOptions};
 use crate::volume::{Samples, SliceReader};
+use std::borrow::Cow;
+use std::sync::OnceLock;
 
 /// The sweep direction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -100,34 +102,132 @@ impl Frame {
 }
 
 /// Inside bits of a whole volume, one padded [`PlaneMask`] per plane along the sweep axis.
-#[derive(Clone, Debug)]
+///
+/// Out of core, only a window of planes is in memory: the others wait in a scratch file and
+/// are read back when something asks for them (a loop round a long handle reaches far below
+/// the sweep), until the next [`MaskVolume::keep_window`] lets them go again (edited ones
+/// written back first).
+///
+/// ```text
+///   plane   0 1 2 3 4 5 6 7 8 9 ...          . on disk only
+///           . . . # . . # # # # . . .         # in memory: the window below the sweep,
+///                 ^ a long handle's cycle       and whatever a search read back
+/// ```
+#[derive(Debug)]
 pub struct MaskVolume {
     /// Extent along (u, v, w).
     pub dims: [usize; 3],
-    pub planes: Vec<PlaneMask>,
+    planes: Vec<OnceLock<PlaneMask>>,
+    /// Planes changed since they were last written to the scratch file.
+    dirty: Vec<bool>,
+    store: Option<PlaneStore>,
+    /// Out of core: planes kept in memory below the sweep (see [`MaskVolume::follow_sweep`]).
+    window: usize,
     /// Where these coordinates sit in the original volume.
     pub frame: Frame,
     empty: PlaneMask,
 }
 
+/// The scratch file behind an out-of-core [`MaskVolume`]: plane `w` at `w · plane_bytes`, its
+/// words little-endian. Deleted when dropped (an unnamed temporary file).
+#[derive(Debug)]
+struct PlaneStore {
+    file: std::fs::File,
+    plane_bytes: u64,
+}
+
+impl PlaneStore {
+    fn create(plane_bytes: usize, planes: usize) -> Result<PlaneStore> {
+        // Named after the folder: the error says where, and TMPDIR says how to move it.
+        let dir = std::env::temp_dir();
+        let file =
+            tempfile::tempfile().map_err(|e| Error::io(&dir, "creating a scratch file in", e))?;
+        file.set_len((plane_bytes * planes) as u64)
+            .map_err(|e| Error::io(&dir, "sizing a scratch file in", e))?;
+        Ok(PlaneStore {
+            file,
+            plane_bytes: plane_bytes as u64,
+        })
+    }
+
+    /// Writes `words` at word offset `at` of plane `w`.
+    fn write(&self, w: usize, at: usize, words: &[u64]) -> Result<()> {
+        use std::os::unix::fs::FileExt;
+        let bytes: Vec<u8> = words.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.file
+            .write_all_at(&bytes, w as u64 * self.plane_bytes + at as u64 * 8)
+            .map_err(|e| Error::io(std::env::temp_dir(), "writing a scratch file in", e))
+    }
+
+    fn read(&self, w: usize, into: &mut PlaneMask) {
+        use std::os::unix::fs::FileExt;
+        let mut bytes = vec![0u8; self.plane_bytes as usize];
+        // The file was sized and written by this process; a failure here is the machine's.
+        self.file
+            .read_exact_at(&mut bytes, w as u64 * self.plane_bytes)
+            .unwrap_or_else(|e| panic!("cannot read back the scratch file: {e}"));
+        for (x, b) in into.bits.iter_mut().zip(bytes.chunks_exact(8)) {
+            *x = u64::from_le_bytes(b.try_into().expect("8 bytes"));
+        }
+    }
+}
+
+/// Memory the planes of an out-of-core volume may take by default.
+pub const DEFAULT_WINDOW_BYTES: usize = 16 << 20;
+
+/// Fewest planes a window holds (a sweep step needs two, a rewind a few more).
+pub const MIN_WINDOW: usize = 8;
+
+/// Planes in memory at a time when classifying a volume: `max_slices` if given (0: all), else
+/// as many as [`DEFAULT_WINDOW_BYTES`] holds.
+pub fn window_for(dims: [usize; 3], max_slices: Option<usize>) -> usize {
+    let plane = PlaneMask::empty(dims[0], dims[1]).bits.len() * 8;
+    let w = match max_slices {
+        Some(0) => dims[2],
+        Some(n) => n,
+        None => DEFAULT_WINDOW_BYTES / plane.max(1),
+    };
+    w.max(MIN_WINDOW).min(dims[2].max(1))
+}
+
 impl MaskVolume {
-    /// An all-outside volume.
+    /// An all-outside volume, in memory.
     pub fn new(dims: [usize; 3], frame: Frame) -> MaskVolume {
         MaskVolume {
             dims,
             planes: (0..dims[2])
-                .map(|_| PlaneMask::empty(dims[0], dims[1]))
+                .map(|_| OnceLock::from(PlaneMask::empty(dims[0], dims[1])))
                 .collect(),
+            dirty: vec![false; dims[2]],
+            store: None,
+            window: dims[2],
             frame,
             empty: PlaneMask::empty(dims[0], dims[1]),
         }
     }
 
-    /// Classifies a whole volume and arranges its planes for a sweep along `axis`.
+    /// An all-outside volume kept in a scratch file, none of its planes in memory yet.
+    fn on_disk(dims: [usize; 3], frame: Frame, window: usize) -> Result<MaskVolume> {
+        let empty = PlaneMask::empty(dims[0], dims[1]);
+        Ok(MaskVolume {
+            dims,
+            planes: (0..dims[2]).map(|_| OnceLock::new()).collect(),
+            dirty: vec![false; dims[2]],
+            store: Some(PlaneStore::create(empty.bits.len() * 8, dims[2])?),
+            window,
+            frame,
+            empty,
+        })
+    }
+
+    /// Classifies a whole volume and arranges its planes for a sweep along `axis`. With
+    /// `max_slices` (0: no limit) below the number of planes, or by default when the planes
+    /// would take more than [`DEFAULT_WINDOW_BYTES`], the volume is kept out of core.
     pub fn from_reader(
         reader: &mut dyn SliceReader,
         opts: &SurfaceOptions,
         axis: Axis,
+        max_slices: Option<usize>,
         progress: &dyn Progress,
     ) -> Result<MaskVolume> {
         let info = reader.info().clone();
@@ -135,15 +235,34 @@ impl MaskVolume {
         let classifier = opts.classifier(&info);
         let uvw = axis.uvw();
         let dims = [info.dims[uvw[0]], info.dims[uvw[1]], info.dims[uvw[2]]];
-        let mut vol = MaskVolume::new(dims, Frame::for_axis(axis));
+        let window = window_for(dims, max_slices);
+        let out_of_core = window < dims[2];
+        let mut vol = if out_of_core {
+            MaskVolume::on_disk(dims, Frame::for_axis(axis), window)?
+        } else {
+            MaskVolume::new(dims, Frame::for_axis(axis))
+        };
         let mut slice = Samples::new(info.dtype);
         let mut plane = PlaneMask::empty(nx, ny);
+        // Out of core along x or y: each input slice gives a line to every plane; gather a
+        // chunk of them (within the default budget) and update each plane once per chunk.
+        let chunk = (DEFAULT_WINDOW_BYTES / (plane.bits.len() * 8).max(1)).max(MIN_WINDOW);
+        let mut pending: Vec<PlaneMask> = Vec::new();
         progress.start("classify", nz as u64);
         for z in 0..nz {
             reader.read_slice(&mut slice)?;
             plane.fill(&slice, &classifier);
             if axis == Axis::Z {
-                vol.planes[z] = plane.clone();
+                match &vol.store {
+                    Some(store) => store.write(z, 0, &plane.bits)?,
+                    None => vol.planes[z] = OnceLock::from(plane.clone()),
+                }
+            } else if out_of_core {
+                pending.push(plane.clone());
+                if pending.len() == chunk || z + 1 == nz {
+                    vol.write_chunk(&pending, z + 1 - pending.len(), uvw)?;
+                    pending.clear();
+                }
             } else {
                 for y in 0..ny {
                     for x in 0..nx {
@@ -160,13 +279,61 @@ impl MaskVolume {
         Ok(vol)
     }
 
-    /// Plane `w`, with the all-outside padding planes at -1 and `dims[2]`.
+    /// Out of core, sweeping along x or y: input planes `z0 ..` each give one line of samples to
+    /// every sweep plane (a row along x, a column along y); reads each plane, sets them, writes
+    /// it back.
+    fn write_chunk(&mut self, inputs: &[PlaneMask], z0: usize, uvw: [usize; 3]) -> Result<()> {
+        let nw = self.dims[2];
+        // The input axis (x or y) that runs along each line.
+        let free = if uvw[2] == 0 { 1 } else { 0 };
+        let mut plane = self.empty.clone();
+        let store = self.store.as_ref().expect("out of core");
+        for w in 0..nw {
+            store.read(w, &mut plane);
+            for (k, input) in inputs.iter().enumerate() {
+                let n = if free == 0 { input.nx } else { input.ny };
+                for t in 0..n {
+                    let mut p = [0usize; 3];
+                    p[uvw[2]] = w;
+                    p[free] = t;
+                    p[2] = z0 + k;
+                    if input.get(p[0] as isize, p[1] as isize) {
+                        plane.set(p[uvw[0]], p[uvw[1]], true);
+                    }
+                }
+            }
+            store.write(w, 0, &plane.bits)?;
+        }
+        Ok(())
+    }
+
+    /// Plane `w`, with the all-outside padding planes at -1 and `dims[2]` (read back from the
+    /// scratch file if it is out of memory).
     #[inline]
     pub fn plane(&self, w: i64) -> &PlaneMask {
         if w < 0 || w >= self.dims[2] as i64 {
-            &self.empty
-        } else {
-            &self.planes[w as usize]
+            return &self.empty;
+        }
+        self.planes[w as usize].get_or_init(|| self.load(w as usize))
+    }
+
+    #[cold]
+    fn load(&self, w: usize) -> PlaneMask {
+        let mut p = self.empty.clone();
+        if let Some(store) = &self.store {
+            store.read(w, &mut p);
+        }
+        p
+    }
+
+    /// Plane `w` without keeping it in memory: for passes over every plane.
+    pub fn plane_once(&self, w: i64) -> Cow<'_, PlaneMask> {
+        if w < 0 || w >= self.dims[2] as i64 {
+            return Cow::Borrowed(&self.empty);
+        }
+        match self.planes[w as usize].get() {
+            Some(p) => Cow::Borrowed(p),
+            None => Cow::Owned(self.load(w as usize)),
         }
     }
 
@@ -177,12 +344,56 @@ impl MaskVolume {
 
     #[inline]
     pub fn set(&mut self, u: usize, v: usize, w: usize, inside: bool) {
-        self.planes[w].set(u, v, inside)
+        self.plane(w as i64);
+        self.dirty[w] = self.store.is_some();
+        self.planes[w]
+            .get_mut()
+            .expect("loaded above")
+            .set(u, v, inside)
+    }
+
+    /// Is the volume out of core?
+    pub fn out_of_core(&self) -> bool {
+        self.store.is_some()
+    }
+
+    /// Planes in memory now.
+    pub fn planes_in_memory(&self) -> usize {
+        self.planes.iter().filter(|p| p.get().is_some()).count()
+    }
+
+    /// Out of core: lets go of every plane outside `lo ..= hi` (writing edited ones back).
+    pub fn keep_window(&mut self, lo: i64, hi: i64) -> Result<()> {
+        let Some(store) = &self.store else {
+            return Ok(());
+        };
+        for w in 0..self.dims[2] {
+            if (lo..=hi).contains(&(w as i64)) {
+                continue;
+            }
+            if self.dirty[w] {
+                if let Some(p) = self.planes[w].get() {
+                    store.write(w, 0, &p.bits)?;
+                }
+                self.dirty[w] = false;
+            }
+            self.planes[w].take();
+        }
+        Ok(())
+    }
+
+    /// Out of core, with the sweep about to process slice `next` (planes `next` and `next + 1`):
+    /// keeps the window of planes just below it, lets go of the rest.
+    pub fn follow_sweep(&mut self, next: i64) -> Result<()> {
+        let hi = next + 1;
+        self.keep_window(hi + 1 - self.window as i64, hi)
     }
 
     /// Number of inside samples.
     pub fn count(&self) -> u64 {
-        self.planes.iter().map(|p| p.count()).sum()
+        (0..self.dims[2] as i64)
+            .map(|w| self.plane_once(w).count())
+            .sum()
     }
 
     /// A copy rotated so that the sweep runs along this volume's u axis: (u', v', w') = (v, w, u).
@@ -190,11 +401,11 @@ impl MaskVolume {
         let [nu, nv, nw] = self.dims;
         let mut out = MaskVolume::new([nv, nw, nu], self.frame.rotated([0, 0, 0]));
         for w in 0..nw {
-            let p = &self.planes[w];
+            let p = self.plane_once(w as i64);
             for v in 0..nv {
                 for u in 0..nu {
                     if p.get(u as isize, v as isize) {
-                        out.planes[u].set(v, w, true);
+                        out.set(v, w, u, true);
                     }
                 }
             }
@@ -212,7 +423,8 @@ impl MaskVolume {
         let mut tracker = SurfaceTracker::default();
         let mut prev: Option<(SliceSurfels, u32)> = None;
         for s in -1..self.dims[2] as i64 {
-            let cur = SliceSurfels::build(self.plane(s), self.plane(s + 1), s as i32, conn);
+            let cur =
+                SliceSurfels::build(&self.plane_once(s), &self.plane_once(s + 1), s as i32, conn);
             let base = tracker.add_slice(&cur, &[], prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
             prev = Some((cur, base));
         }
