@@ -7,28 +7,19 @@ the sweep's speed as a ratio to the genus pass in the same run.
 """
 
 import json
-import re
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
-from common import REAL, SHARED, isotopo_bin  # noqa: E402
+from common import REAL, SHARED, isotopo_bin, timed  # noqa: E402
 
 
 def run(*args):
     """(wall seconds, peak MiB, parsed JSON stdout), best of 2 for the time."""
-    best = None
-    for _ in range(2):
-        t = time.perf_counter()
-        p = subprocess.run(["/usr/bin/time", "-v", isotopo_bin(), *map(str, args)], capture_output=True, text=True, check=True)
-        dt = time.perf_counter() - t
-        rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) / 1024
-        if best is None or dt < best[0]:
-            best = (dt, rss, json.loads(p.stdout))
-    return best
+    dt, rss, p = timed([isotopo_bin(), *args], repeat=2)
+    return dt, rss, json.loads(p.stdout)
 
 
 def main(names):

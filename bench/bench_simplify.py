@@ -9,14 +9,13 @@ With --mesh-dir, also writes the isosurface before and after (binary PLY) for ea
 """
 
 import json
-import re
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
-from common import REAL, SHARED, isotopo_bin  # noqa: E402
+from common import REAL, SHARED, isotopo_bin, timed  # noqa: E402
 
 DEFAULT = ["buddha-sdf.nii.gz", "cranium-ct.nii.gz", "mni2009a-gm.nii.gz", "freesurfer-wm.mgz", "bunny-ct.nii.gz"]
 
@@ -39,14 +38,13 @@ def main(argv):
             stem = name.split(".")[0]
             out = Path(d) / ("out" + "".join(Path(name).suffixes))
             report = Path(d) / "report.json"
-            cmd = ["/usr/bin/time", "-v", isotopo_bin(), "simplify", str(path), "--iso", str(REAL[name]), "--tau", tau, "-o", str(out), "--report", str(report), "-q"]
+            cmd = [isotopo_bin(), "simplify", str(path), "--iso", str(REAL[name]), "--tau", tau, "-o", str(out), "--report", str(report), "-q"]
             if mesh_dir:
                 mesh_dir.mkdir(parents=True, exist_ok=True)
                 cmd += ["--mesh", str(mesh_dir / f"{stem}-after.ply")]
-            p = subprocess.run(cmd, capture_output=True, text=True)
+            _, rss, p = timed(cmd, check=False)
             if p.returncode != 0:
                 sys.exit(f"{name}: simplify failed:\n{p.stderr}")
-            rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) / 1024
             r = json.loads(report.read_text())
             if mesh_dir:
                 subprocess.run([isotopo_bin(), "mesh", str(path), "--iso", str(REAL[name]), "-o", str(mesh_dir / f"{stem}-before.ply"), "-q"], check=True)

@@ -8,7 +8,6 @@ included. Peak memory from /usr/bin/time -v.
 """
 
 import json
-import re
 import subprocess
 import sys
 import tempfile
@@ -18,23 +17,17 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
-from common import REAL, SHARED, isotopo_bin, load, skimage_betti  # noqa: E402
+from common import REAL, SHARED, isotopo_bin, load, skimage_betti, timed  # noqa: E402
 
 
 def timed_isotopo(*args):
     """(wall seconds, peak RSS MiB, stdout) of one isotopo run, best of 3 for the time."""
-    best = None
-    for _ in range(3):
-        t = time.perf_counter()
-        p = subprocess.run(["/usr/bin/time", "-v", isotopo_bin(), *map(str, args)], capture_output=True, text=True, check=True)
-        dt = time.perf_counter() - t
-        rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) / 1024
-        if best is None or dt < best[0]:
-            best = (dt, rss, p.stdout)
-    return best
+    dt, rss, p = timed([isotopo_bin(), *args], repeat=3)
+    return dt, rss, p.stdout
 
 
-def vtk_flying_edges(values, iso):
+def vtk_flying_edges(values, iso, repeat=3):
+    """(best seconds of `repeat` vtkFlyingEdges3D updates, triangles) on values indexed [x, y, z]."""
     import vtk
     from vtk.util import numpy_support
 
@@ -43,7 +36,7 @@ def vtk_flying_edges(values, iso):
     arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(values.transpose(2, 1, 0)).ravel(), deep=True)
     img.GetPointData().SetScalars(arr)
     best = None
-    for _ in range(3):
+    for _ in range(repeat):
         fe = vtk.vtkFlyingEdges3D()
         fe.SetInputData(img)
         fe.SetValue(0, iso)

@@ -1,10 +1,13 @@
 """Helpers shared by the cross-check and benchmark scripts: loading volumes independently of
-isotopo, the scikit-image topology oracle, and running the isotopo binary."""
+isotopo, the scikit-image topology oracle, running the isotopo binary, and timing a command's
+wall time and peak memory."""
 
 import json
 import os
+import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +44,41 @@ def run_isotopo(*args, check=True):
     if "--json" in args:
         return json.loads(p.stdout)
     return p.stdout
+
+
+def timed(cmd, repeat=1, check=True):
+    """Runs cmd (a list of arguments, str() applied) under `/usr/bin/time -v`, `repeat` times.
+    Returns (wall seconds, peak RSS in MiB, subprocess.CompletedProcess) of the fastest run; the
+    process's stdout is the command's, its stderr the command's followed by time's report (see
+    cpu_seconds). With check, a failing run prints its stderr and raises CalledProcessError;
+    without, the failed run is returned at once (test its returncode)."""
+    cmd = ["/usr/bin/time", "-v", *map(str, cmd)]
+    best = None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        p = subprocess.run(cmd, capture_output=True, text=True)
+        dt = time.perf_counter() - t
+        rss = _time_v(p.stderr, "Maximum resident set size (kbytes)") / 1024
+        if p.returncode != 0:
+            if check:
+                sys.stderr.write(p.stderr)
+                raise subprocess.CalledProcessError(p.returncode, cmd, p.stdout, p.stderr)
+            return dt, rss, p
+        if best is None or dt < best[0]:
+            best = (dt, rss, p)
+    return best
+
+
+def cpu_seconds(p):
+    """User + system CPU seconds of a run returned by timed()."""
+    return _time_v(p.stderr, "User time (seconds)") + _time_v(p.stderr, "System time (seconds)")
+
+
+def _time_v(stderr, field):
+    """A number from /usr/bin/time -v's report (the last occurrence: the command's own stderr comes
+    first); NaN if absent."""
+    found = re.findall(r"^\s*" + re.escape(field) + r": ([0-9.]+)\s*$", stderr, re.M)
+    return float(found[-1]) if found else float("nan")
 
 
 def load(path):
