@@ -4,9 +4,9 @@
 mod progress;
 
 use clap::{Args, Parser, Subcommand};
-use isotopo::sweep::Axis;
+use isotopo::sweep::{Axis, HandleReport, MaskVolume};
 use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
-use isotopo::volume::{self, DType, Endian, ReadOptions};
+use isotopo::volume::{self, DType, Endian, ReadOptions, SliceReader};
 use isotopo::{Error, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -683,6 +683,19 @@ fn cmd_mesh(a: MeshArgs) -> Result<()> {
     Ok(())
 }
 
+/// Classifies the volume (within the window of planes asked for) and sweeps it for handles.
+fn sweep(
+    reader: &mut dyn SliceReader,
+    opts: &SurfaceOptions,
+    axis: Axis,
+    window: &WindowArgs,
+    bars: &progress::Bars,
+) -> Result<(MaskVolume, HandleReport)> {
+    let mut masks = MaskVolume::from_reader(reader, opts, axis, window.max_slices, bars)?;
+    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, bars)?;
+    Ok((masks, report))
+}
+
 fn cmd_handles(a: HandlesArgs) -> Result<()> {
     let opts = a.surface.options()?;
     let axis = a.axis.axis();
@@ -690,14 +703,7 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
     let info = reader.info().clone();
     let bars = progress::Bars::new(a.quiet || a.json);
     let t = Instant::now();
-    let mut masks = isotopo::sweep::MaskVolume::from_reader(
-        reader.as_mut(),
-        &opts,
-        axis,
-        a.window.max_slices,
-        &bars,
-    )?;
-    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, &bars)?;
+    let (_, report) = sweep(reader.as_mut(), &opts, axis, &a.window, &bars)?;
     let secs = t.elapsed().as_secs_f64();
     let handles = isotopo::report::handles_json(&report, &info);
     if a.json {
@@ -806,14 +812,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
-    let mut masks = isotopo::sweep::MaskVolume::from_reader(
-        reader.as_mut(),
-        &opts,
-        axis,
-        a.window.max_slices,
-        &bars,
-    )?;
-    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, &bars)?;
+    let (mut masks, report) = sweep(reader.as_mut(), &opts, axis, &a.window, &bars)?;
     let t_sweep = t.elapsed().as_secs_f64();
     let loops = isotopo::loops::measure_all(
         &mut masks,

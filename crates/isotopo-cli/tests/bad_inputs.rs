@@ -444,3 +444,38 @@ fn good_input_still_works() {
         listing(dir.path())
     );
 }
+
+/// Out of core with nowhere to put the scratch file: a clear message (where, how to fix it),
+/// exit code 2, no output left.
+#[test]
+fn unwritable_scratch_folder_is_a_clear_error() {
+    let d = tempfile::tempdir().unwrap();
+    // 4×3×2 volume: a window of 8 planes covers it, so this asks for 20 planes along z.
+    let mut b = nifti_bytes(4, 16, [4, 3, 20]);
+    for i in 0..240i16 {
+        b.extend_from_slice(&(i % 7 * 10).to_le_bytes());
+    }
+    let input = d.path().join("tall.nii");
+    std::fs::write(&input, b).unwrap();
+    let output = d.path().join("out.nii");
+    let out = Command::new(env!("CARGO_BIN_EXE_isotopo"))
+        .args([
+            "simplify",
+            input.to_str().unwrap(),
+            "--iso",
+            "30",
+            "--tau",
+            "20",
+        ])
+        .args(["-o", output.to_str().unwrap(), "--max-slices", "8", "-q"])
+        .env("TMPDIR", d.path().join("missing"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    for want in ["scratch file", "missing", "TMPDIR", "--max-slices 0"] {
+        assert!(stderr.contains(want), "message lacks {want:?}: {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!output.exists());
+}

@@ -136,14 +136,23 @@ struct PlaneStore {
     plane_bytes: u64,
 }
 
+/// The scratch file could not be made or written: say where it goes and how to move it.
+fn scratch_error(what: &str, bytes: u64, e: std::io::Error) -> Error {
+    Error::usage(format!(
+        "cannot {what} the scratch file of the planes out of memory ({} MB) in {}: {e}; set \
+         TMPDIR to a writable folder with room, or --max-slices 0 to keep the whole volume in \
+         memory",
+        bytes.div_ceil(1 << 20),
+        std::env::temp_dir().display()
+    ))
+}
+
 impl PlaneStore {
     fn create(plane_bytes: usize, planes: usize) -> Result<PlaneStore> {
-        // Named after the folder: the error says where, and TMPDIR says how to move it.
-        let dir = std::env::temp_dir();
-        let file =
-            tempfile::tempfile().map_err(|e| Error::io(&dir, "creating a scratch file in", e))?;
-        file.set_len((plane_bytes * planes) as u64)
-            .map_err(|e| Error::io(&dir, "sizing a scratch file in", e))?;
+        let bytes = (plane_bytes * planes) as u64;
+        let file = tempfile::tempfile()
+            .and_then(|f| f.set_len(bytes).map(|_| f))
+            .map_err(|e| scratch_error("create", bytes, e))?;
         Ok(PlaneStore {
             file,
             plane_bytes: plane_bytes as u64,
@@ -156,7 +165,7 @@ impl PlaneStore {
         let bytes: Vec<u8> = words.iter().flat_map(|x| x.to_le_bytes()).collect();
         self.file
             .write_all_at(&bytes, w as u64 * self.plane_bytes + at as u64 * 8)
-            .map_err(|e| Error::io(std::env::temp_dir(), "writing a scratch file in", e))
+            .map_err(|e| scratch_error("write", bytes.len() as u64, e))
     }
 
     fn read(&self, w: usize, into: &mut PlaneMask) {
