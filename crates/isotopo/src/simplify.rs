@@ -333,6 +333,13 @@ fn plan<'l>(
     Ok(allowed)
 }
 
+fn opposite(op: Operation) -> Operation {
+    match op {
+        Operation::Collapse => Operation::Pinch,
+        Operation::Pinch => Operation::Collapse,
+    }
+}
+
 /// Closing a loop around void fills; closing one around material cuts.
 fn operation_for(l: &Loop) -> Operation {
     match l.encloses {
@@ -473,46 +480,57 @@ pub fn simplify(
                         LoopKind::Cross => l.reeb.as_ref(),
                     }
                     .map_or(&[], |x| &x.vertices);
-                    for extra in EXTRA_THICKNESS {
-                        let d = base_thickness(op, conn) + extra;
-                        match closure::close(
-                            vol,
-                            conn,
-                            &lp.vertices,
-                            partner,
-                            op,
-                            d,
-                            &mut caches.graph,
-                        ) {
-                            Some(applied) => {
-                                done = Some((which, lp, applied, d));
-                                break 'loops;
-                            }
-                            None => refused += 1,
-                        }
-                    }
-                    // A short loop round a corner or edge contact: one sample may do.
-                    if lp.length <= SINGLE_SAMPLE_LOOP {
-                        for q in closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH) {
-                            let [u, v, w] = q;
-                            if vol.get(u, v, w) == op.target() {
-                                continue;
-                            }
-                            let wall = vec![q];
-                            match closure::close_with(
+                    // Without a partner loop, the side the loop goes round was judged from its
+                    // fan alone: if no wall of that kind closes it, try the other kind (every
+                    // wall is verified either way).
+                    let ops = if partner.is_empty() && opts.mode == Mode::Both {
+                        vec![op, opposite(op)]
+                    } else {
+                        vec![op]
+                    };
+                    for op in ops {
+                        for extra in EXTRA_THICKNESS {
+                            let d = base_thickness(op, conn) + extra;
+                            match closure::close(
                                 vol,
                                 conn,
                                 &lp.vertices,
                                 partner,
                                 op,
-                                wall,
+                                d,
                                 &mut caches.graph,
                             ) {
                                 Some(applied) => {
-                                    done = Some((which, lp, applied, SINGLE_SAMPLE_REACH));
+                                    done = Some((which, lp, applied, d));
                                     break 'loops;
                                 }
                                 None => refused += 1,
+                            }
+                        }
+                        // A short loop round a corner or edge contact: one sample may do.
+                        if lp.length <= SINGLE_SAMPLE_LOOP {
+                            for q in closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
+                            {
+                                let [u, v, w] = q;
+                                if vol.get(u, v, w) == op.target() {
+                                    continue;
+                                }
+                                let wall = vec![q];
+                                match closure::close_with(
+                                    vol,
+                                    conn,
+                                    &lp.vertices,
+                                    partner,
+                                    op,
+                                    wall,
+                                    &mut caches.graph,
+                                ) {
+                                    Some(applied) => {
+                                        done = Some((which, lp, applied, SINGLE_SAMPLE_REACH));
+                                        break 'loops;
+                                    }
+                                    None => refused += 1,
+                                }
                             }
                         }
                     }

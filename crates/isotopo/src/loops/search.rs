@@ -701,16 +701,16 @@ pub fn shortest_loop_with_parities(
         let gen = g.scratch.next_generation();
         g.scratch.ensure((g.arena.len() + 1) << bits, 0);
         let start = si << bits;
+        let target = (si << bits) | goal;
         g.scratch.stamp[start as usize] = gen;
         g.scratch.dist[start as usize] = 0;
         g.scratch.pred[start as usize] = u32::MAX;
         queue.clear();
         queue.push_back(start);
-        // As in the first phase, a loop through `s` shorter than `best_len` shows as the two
-        // states (parities differing by `goal`) of its middle vertex, both within half of it.
-        while let Some(st) = queue.pop_front() {
-            let d = g.scratch.dist[st as usize] as usize;
-            if d >= best_len / 2 || budget == 0 {
+        let mut found = None;
+        'bfs: while let Some(st) = queue.pop_front() {
+            let d = g.scratch.dist[st as usize];
+            if d as usize + 1 >= best_len || budget == 0 {
                 break;
             }
             budget -= 1;
@@ -731,28 +731,28 @@ pub fn shortest_loop_with_parities(
                     continue;
                 }
                 sc.stamp[ns as usize] = gen;
-                sc.dist[ns as usize] = d as u32 + 1;
+                sc.dist[ns as usize] = d + 1;
                 sc.pred[ns as usize] = st;
-                let other = ns ^ goal;
-                if sc.stamp[other as usize] == gen
-                    && d + 1 + (sc.dist[other as usize] as usize) < best_len
-                {
-                    // s … v, then back from v to s along the other state's path.
-                    let mut walk = states_to(g, ns, bits);
-                    let mut back = states_to(g, other, bits);
-                    back.pop(); // v
-                    back.reverse();
-                    walk.extend(back);
-                    if walk.len() > 1 && walk.first() == walk.last() {
-                        walk.pop();
-                    }
-                    let walk = simple_cycle(g, &curves, walk, goal);
-                    if walk.len() < best_len {
-                        best_len = walk.len();
-                        best = Some(walk);
-                    }
+                if ns == target {
+                    found = Some(d + 1);
+                    break 'bfs;
                 }
                 queue.push_back(ns);
+            }
+        }
+        if let Some(len) = found {
+            if (len as usize) < best_len {
+                // Walk back from (s, goal) to (s, 0).
+                let mut path = Vec::with_capacity(len as usize);
+                let mut st = target;
+                while st != start {
+                    path.push(g.vertex(st >> bits));
+                    st = g.scratch.pred[st as usize];
+                }
+                path.reverse();
+                let path = simple_cycle(g, &curves, path, goal);
+                best_len = path.len();
+                best = Some(path);
             }
         }
     }
@@ -760,21 +760,11 @@ pub fn shortest_loop_with_parities(
 }
 
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
-/// Where the two states of a vertex meet — reached with parity 0 from source `a` and with
-/// parity 1 from source `b` — a closed walk crosses `cut` an odd number of times: from `a` to
-/// the vertex, on to `b`, then back along `cut` to `a` (edges along `cut` flip nothing).
-///
-/// ```text
-///    a ~~~~~~~> v <~~~~~~~ b       parities 0 and 1 at v: a -> v -> b is odd,
-///    |__________ cut ______|       and the way back along the cut is even
-/// ```
-///
-/// Any loop of length L through a vertex of `cut` has, at its middle, a vertex whose two states
-/// both lie within ceil(L / 2) of the sources (one along each half of the loop), so the search
-/// need only go half as deep as the loop is long. Returns the shortest walk found (not yet
-/// simple; at most half of `cut` longer than the shortest loop) and its start, and whether the
-/// search was conclusive (not cut short by its budget): then no walk means that no loop crossing
-/// `cut` an odd number of times is shorter than `limit`.
+/// Reaching a vertex of `cut` with odd parity closes a loop: the path, then back along `cut` to
+/// where it started. Returns the shortest such walk (not yet simple) and its start, and whether
+/// the search was conclusive (it did not run out of budget): then no walk means that no loop
+/// crossing `cut` an odd number of times is shorter than `limit` (such a loop passes through a
+/// vertex of `cut`, whose odd state the search reaches no later than the loop's length).
 type FirstWalk = Option<(Vec<Vertex>, Vertex)>;
 fn multi_source(
     g: &mut Graph,
@@ -792,6 +782,7 @@ fn multi_source(
     else {
         return (None, false);
     };
+    let pos: FastMap<u32, usize> = nums.iter().enumerate().map(|(i, &v)| (v, i)).collect();
     let gen = g.scratch.next_generation();
     g.scratch.ensure((g.arena.len() + 1) << 1, 0);
     let mut queue: VecDeque<u32> = VecDeque::new();
@@ -810,18 +801,15 @@ fn multi_source(
         let d = a.abs_diff(b);
         d.min(n - d)
     };
-    // (walk length, the two meeting states, their two path lengths' sum)
-    let mut best: Option<(usize, u32, u32)> = None;
-    let mut least_sum = usize::MAX;
+    let mut best: Option<(usize, u32, usize)> = None; // (length, end state, end position)
     let mut budget = FIRST_BUDGET;
     while let Some(st) = queue.pop_front() {
-        let d = g.scratch.dist[st as usize] as usize;
-        // Every state within half the limit (or half the best pair so far) has been reached.
-        if 2 * d >= least_sum || d >= limit / 2 || budget == 0 {
+        let (d, src) = (g.scratch.dist[st as usize], g.scratch.source[st as usize]);
+        if best.is_some_and(|b| d as usize + 1 >= b.0) || d as usize + 1 >= limit || budget == 0 {
             break;
         }
         budget -= 1;
-        let (vi, par, src) = (st >> 1, st & 1, g.scratch.source[st as usize]);
+        let (vi, par) = (st >> 1, st & 1);
         let mask = g.usable_mask(region, vi);
         for k in 0..g.at(vi).n {
             if (mask >> k) & 1 == 0 {
@@ -832,68 +820,52 @@ fn multi_source(
             };
             g.scratch
                 .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
-            let ns = (wi << 1) | (par ^ curves.flip(g, vi, k, wi));
+            let np = par ^ curves.flip(g, vi, k, wi);
+            let ns = (wi << 1) | np;
             let sc = &mut g.scratch;
             if sc.stamp[ns as usize] == gen {
                 continue;
             }
             sc.stamp[ns as usize] = gen;
-            sc.dist[ns as usize] = d as u32 + 1;
+            sc.dist[ns as usize] = d + 1;
             sc.pred[ns as usize] = st;
             sc.source[ns as usize] = src;
-            let other = ns ^ 1;
-            if sc.stamp[other as usize] == gen {
-                let sum = d + 1 + sc.dist[other as usize] as usize;
-                let total = sum + along(src as usize, sc.source[other as usize] as usize);
-                least_sum = least_sum.min(sum);
-                if sum < limit && best.is_none_or(|b| total < b.0) {
-                    best = Some((total, ns, other));
+            if np == 1 {
+                if let Some(&j) = pos.get(&wi) {
+                    let total = d as usize + 1 + along(src as usize, j);
+                    if best.is_none_or(|b| total < b.0) {
+                        best = Some((total, ns, j));
+                    }
                 }
             }
             queue.push_back(ns);
         }
     }
     let conclusive = budget > 0;
-    let Some((_, end, other)) = best else {
+    let Some((_, end, j)) = best else {
         return (None, conclusive);
     };
-    let sc = &g.scratch;
-    let (a, b) = (
-        sc.source[end as usize] as usize,
-        sc.source[other as usize] as usize,
-    );
-    // a … v, then v's other state back to b, then along the cut from b to a.
-    let mut walk = states_to(g, end, 1);
-    let mut back = states_to(g, other, 1);
-    back.pop(); // v
-    back.reverse();
-    walk.extend(back);
-    let forward = (a + n - b) % n; // steps from b forward to a
-    let step: isize = if forward <= n - forward { 1 } else { -1 };
-    let mut i = b as isize;
-    loop {
-        i = (i + step).rem_euclid(n as isize);
-        if i as usize == a {
-            break;
-        }
-        walk.push(cut[i as usize]);
-    }
-    if walk.len() > 1 && walk.first() == walk.last() {
-        walk.pop();
-    }
-    (Some((walk, cut[a])), conclusive)
-}
-
-/// The vertices of the search path that ends in state `st` (`bits` parity bits), its source
-/// first.
-fn states_to(g: &Graph, mut st: u32, bits: u32) -> Vec<Vertex> {
+    let src = g.scratch.source[end as usize] as usize;
+    // The path from the source to the end…
     let mut path = Vec::new();
+    let mut st = end;
     while st != u32::MAX {
-        path.push(g.vertex(st >> bits));
+        path.push(g.vertex(st >> 1));
         st = g.scratch.pred[st as usize];
     }
-    path.reverse();
-    path
+    path.reverse(); // source … end
+                    // …then along the cut from the end back to the source (excluding both).
+    let forward = (src + n - j) % n; // steps from j forward to src
+    let step: isize = if forward <= n - forward { 1 } else { -1 };
+    let mut i = j as isize;
+    loop {
+        i = (i + step).rem_euclid(n as isize);
+        if i as usize == src {
+            break;
+        }
+        path.push(cut[i as usize]);
+    }
+    (Some((path, cut[src])), conclusive)
 }
 
 /// The shortest path within the region from `from` to a vertex `is_target` accepts (`from`
