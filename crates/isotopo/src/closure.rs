@@ -302,30 +302,6 @@ fn flip(
     cache.invalidate(vol, cases(conn), b.min, b.max);
 }
 
-/// Writes the wall for `lp` (its vertices, volume-local) into the mask and keeps it if it removes
-/// handles of the loop's surface only, and at least one; else restores the mask.
-///
-/// Why the checks suffice: cubes with no flipped corner keep their pieces, and so do pieces of
-/// touched cubes whose corners and loops stay the same; only the others change. If some pieces
-/// go, every piece that goes lies on the loop's surface S, and the pieces that come are all
-/// connected, the rest of S hangs on them (it met the pieces that went at crossing points that
-/// are still there), so S stays one surface and the others are untouched; its Euler
-/// characteristic, a sum over pieces, then says how many handles went.
-///
-/// `cache` holds the surface graph's neighbourhoods of `vol`, and is kept up to date.
-pub fn close(
-    vol: &mut MaskVolume,
-    conn: Connectivity,
-    lp: &[Vertex],
-    partner: &[Vertex],
-    op: Operation,
-    d: f64,
-    cache: &mut GraphCache,
-) -> Option<Applied> {
-    let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
-    close_with(vol, conn, lp, partner, op, wall(&points, d), cache)
-}
-
 /// Samples within `reach` of the centroid of a short loop, each of which alone may be a wall:
 /// where a handle is a single corner contact, the fan's own wall can take the wrong one of the
 /// two samples that touch (and cut off a spur), while the other one works.
@@ -350,8 +326,19 @@ pub fn single_sample_walls(lp: &[Vertex], reach: f64) -> Vec<[i64; 3]> {
     out.into_iter().map(|(_, q)| q).collect()
 }
 
-/// Like [`close`], with the wall's samples given.
-pub fn close_with(
+/// Writes `wall` (samples, volume-local; [`wall`] across the loop's fan, or single samples) for
+/// the loop `lp` (its vertices, volume-local) into the mask and keeps it if it removes handles of
+/// the loop's surface only, and at least one; else restores the mask.
+///
+/// Why the checks suffice: cubes with no flipped corner keep their pieces, and so do pieces of
+/// touched cubes whose corners and loops stay the same; only the others change. If some pieces
+/// go, every piece that goes lies on the loop's surface S, and the pieces that come are all
+/// connected, the rest of S hangs on them (it met the pieces that went at crossing points that
+/// are still there), so S stays one surface and the others are untouched; its Euler
+/// characteristic, a sum over pieces, then says how many handles went.
+///
+/// `cache` holds the surface graph's neighbourhoods of `vol`, and is kept up to date.
+pub fn close(
     vol: &mut MaskVolume,
     conn: Connectivity,
     lp: &[Vertex],

@@ -488,16 +488,32 @@ pub fn simplify(
                     } else {
                         vec![op]
                     };
+                    let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
                     for op in ops {
-                        for extra in EXTRA_THICKNESS {
-                            let d = base_thickness(op, conn) + extra;
+                        // Walls of growing thickness across the loop's fan; then, for a short
+                        // loop round a corner or edge contact, single samples (one may do).
+                        let thick = EXTRA_THICKNESS
+                            .iter()
+                            .map(|extra| (None, base_thickness(op, conn) + extra));
+                        let singles = if lp.length <= SINGLE_SAMPLE_LOOP {
+                            closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
+                        } else {
+                            Vec::new()
+                        };
+                        let singles = singles.into_iter().map(|q| (Some(q), SINGLE_SAMPLE_REACH));
+                        for (sample, d) in thick.chain(singles) {
+                            let wall = match sample {
+                                None => closure::wall(&points, d),
+                                Some([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
+                                Some(q) => vec![q],
+                            };
                             match closure::close(
                                 vol,
                                 conn,
                                 &lp.vertices,
                                 partner,
                                 op,
-                                d,
+                                wall,
                                 &mut caches.graph,
                             ) {
                                 Some(applied) => {
@@ -505,32 +521,6 @@ pub fn simplify(
                                     break 'loops;
                                 }
                                 None => refused += 1,
-                            }
-                        }
-                        // A short loop round a corner or edge contact: one sample may do.
-                        if lp.length <= SINGLE_SAMPLE_LOOP {
-                            for q in closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
-                            {
-                                let [u, v, w] = q;
-                                if vol.get(u, v, w) == op.target() {
-                                    continue;
-                                }
-                                let wall = vec![q];
-                                match closure::close_with(
-                                    vol,
-                                    conn,
-                                    &lp.vertices,
-                                    partner,
-                                    op,
-                                    wall,
-                                    &mut caches.graph,
-                                ) {
-                                    Some(applied) => {
-                                        done = Some((which, lp, applied, SINGLE_SAMPLE_REACH));
-                                        break 'loops;
-                                    }
-                                    None => refused += 1,
-                                }
                             }
                         }
                     }

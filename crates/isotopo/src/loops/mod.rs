@@ -182,8 +182,11 @@ impl SliceCache {
         }
     }
 
-    fn get(&self, s: i64) -> Option<&SliceSurfels> {
-        self.slices.get(&s).map(|(sl, _)| sl)
+    /// The ribbon (in its slice) of a piece whose slice is cached.
+    fn ribbon_of(&self, p: &PieceRef) -> Option<u32> {
+        let (sl, _) = self.slices.get(&p.cube[2])?;
+        let q = sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32)?;
+        Some(sl.piece_ribbon[sl.cubes[q].first_piece as usize + p.index as usize])
     }
 
     /// Between handles: forgets the least recently used slices beyond the budget.
@@ -244,15 +247,11 @@ impl CycleRegion<'_> {
 
 impl Region for CycleRegion<'_> {
     fn allows(&self, p: &PieceRef) -> bool {
-        let s = p.cube[2];
-        let (Some(ribbons), Some(sl)) = (self.ribbons.get(&s), self.cache.get(s)) else {
-            return false;
-        };
-        match sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32) {
-            Some(q) => ribbons
-                .contains(&sl.piece_ribbon[sl.cubes[q].first_piece as usize + p.index as usize]),
-            None => false,
-        }
+        self.ribbons.get(&p.cube[2]).is_some_and(|ribbons| {
+            self.cache
+                .ribbon_of(p)
+                .is_some_and(|r| ribbons.contains(&r))
+        })
     }
 }
 
@@ -285,16 +284,7 @@ struct OneRibbon<'c> {
 
 impl Region for OneRibbon<'_> {
     fn allows(&self, p: &PieceRef) -> bool {
-        if p.cube[2] != self.slice {
-            return false;
-        }
-        let Some(sl) = self.cache.get(self.slice) else {
-            return false;
-        };
-        sl.find_cube((p.cube[0] + 1) as u32, (p.cube[1] + 1) as u32)
-            .is_some_and(|q| {
-                sl.piece_ribbon[sl.cubes[q].first_piece as usize + p.index as usize] == self.ribbon
-            })
+        p.cube[2] == self.slice && self.cache.ribbon_of(p) == Some(self.ribbon)
     }
 }
 

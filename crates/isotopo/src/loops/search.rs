@@ -229,13 +229,8 @@ impl<'a> Graph<'a> {
             if visited > budget {
                 return Reach::Budget;
             }
-            let m = self.usable_mask(region, i);
-            for k in 0..self.arena[i as usize].n {
-                if m & (1 << k) != 0 {
-                    if let Some(j) = self.neighbour(i, k) {
-                        visit(self, j, &mut queue, &mut pending);
-                    }
-                }
+            for (_, j) in self.steps(region, i) {
+                visit(self, j, &mut queue, &mut pending);
             }
         }
     }
@@ -330,6 +325,27 @@ impl<'a> Graph<'a> {
         sc.usable_stamp[i as usize] = sc.region_generation;
         sc.usable_mask[i as usize] = m;
         m
+    }
+}
+
+impl Graph<'_> {
+    /// The steps a search may take from vertex `i` within the region: (k, number of neighbour
+    /// k), k increasing. Resolving neighbours may number new vertices, so a caller sizes its
+    /// state arrays after this.
+    #[inline]
+    fn steps(&mut self, region: &dyn Region, i: u32) -> impl Iterator<Item = (usize, u32)> {
+        let mask = self.usable_mask(region, i);
+        let mut out = [(0usize, 0u32); MAX_DEGREE];
+        let mut n = 0;
+        for k in 0..self.arena[i as usize].n {
+            if (mask >> k) & 1 == 1 {
+                if let Some(w) = self.neighbour(i, k) {
+                    out[n] = (k, w);
+                    n += 1;
+                }
+            }
+        }
+        out.into_iter().take(n)
     }
 }
 
@@ -616,23 +632,8 @@ pub fn odd_loop_below(
     region: &dyn Region,
     limit: usize,
 ) -> Option<Option<Vec<Vertex>>> {
-    if cut.len() < 2 {
-        return Some(None);
-    }
-    let curves = Curves::new(g, cut, &[])?;
-    g.scratch.next_region();
-    match multi_source(g, &curves, cut, region, limit) {
-        (None, true) => Some(None),
-        (None, false) => None,
-        (Some(_), _) => Some(shortest_loop_with_parities(
-            g,
-            cut,
-            &[],
-            region,
-            limit,
-            usize::MAX,
-        )),
-    }
+    let (found, decided) = odd_loop_search(g, cut, &[], region, limit, usize::MAX);
+    decided.then_some(found)
 }
 
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
@@ -652,22 +653,39 @@ pub fn shortest_loop_with_parities(
     limit: usize,
     exact_below: usize,
 ) -> Option<Vec<Vertex>> {
+    odd_loop_search(g, cut, even, region, limit, exact_below).0
+}
+
+/// [`shortest_loop_with_parities`], and whether its answer is decided: the first phase found a
+/// loop, or saw every state closer than `limit` (so that no loop means none is that short).
+fn odd_loop_search(
+    g: &mut Graph,
+    cut: &[Vertex],
+    even: &[&[Vertex]],
+    region: &dyn Region,
+    limit: usize,
+    exact_below: usize,
+) -> (Option<Vec<Vertex>>, bool) {
     if cut.len() < 2 {
-        return None;
+        return (None, true);
     }
-    let curves = Curves::new(g, cut, even)?;
+    let Some(curves) = Curves::new(g, cut, even) else {
+        return (None, false);
+    };
     g.scratch.next_region();
     let goal: u32 = 1;
     let mut best: Option<Vec<Vertex>> = None;
     let mut best_len = limit;
     let mut sources: Vec<Vertex> = cut.to_vec();
+    let mut decided = false;
     // Phase 1 (one curve only: closing along it must not change other parities).
     if even.is_empty() {
         let (first, conclusive) = multi_source(g, &curves, cut, region, limit);
         if first.is_none() && conclusive {
             // Every state closer than `limit` was seen: no odd loop is that short.
-            return None;
+            return (None, true);
         }
+        decided = first.is_some();
         if let Some((walk, start)) = first {
             let walk = simple_cycle(g, &curves, walk, goal);
             if walk.len() < best_len {
@@ -675,7 +693,7 @@ pub fn shortest_loop_with_parities(
                 best = Some(walk);
             }
             if best_len.saturating_sub(cut.len() / 2 + 1) >= exact_below {
-                return best;
+                return (best, decided);
             }
             // Search from the loop's own start first: it finds a loop no longer than the bound.
             if let Some(p) = sources.iter().position(|&v| v == start) {
@@ -715,16 +733,10 @@ pub fn shortest_loop_with_parities(
             }
             budget -= 1;
             let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
-            let mask = g.usable_mask(region, vi);
-            for k in 0..g.at(vi).n {
-                if (mask >> k) & 1 == 0 {
-                    continue;
-                }
-                let Some(wi) = g.neighbour(vi, k) else {
-                    continue;
-                };
-                g.scratch
-                    .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+            let steps = g.steps(region, vi);
+            g.scratch
+                .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+            for (k, wi) in steps {
                 let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
                 let sc = &mut g.scratch;
                 if sc.stamp[ns as usize] == gen {
@@ -756,7 +768,7 @@ pub fn shortest_loop_with_parities(
             }
         }
     }
-    best
+    (best, decided)
 }
 
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
@@ -810,16 +822,10 @@ fn multi_source(
         }
         budget -= 1;
         let (vi, par) = (st >> 1, st & 1);
-        let mask = g.usable_mask(region, vi);
-        for k in 0..g.at(vi).n {
-            if (mask >> k) & 1 == 0 {
-                continue;
-            }
-            let Some(wi) = g.neighbour(vi, k) else {
-                continue;
-            };
-            g.scratch
-                .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+        let steps = g.steps(region, vi);
+        g.scratch
+            .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+        for (k, wi) in steps {
             let np = par ^ curves.flip(g, vi, k, wi);
             let ns = (wi << 1) | np;
             let sc = &mut g.scratch;
@@ -894,15 +900,9 @@ pub fn path_to(
         if visited > budget {
             return None;
         }
-        let mask = g.usable_mask(region, vi);
-        for k in 0..g.at(vi).n {
-            if (mask >> k) & 1 == 0 {
-                continue;
-            }
-            let Some(wi) = g.neighbour(vi, k) else {
-                continue;
-            };
-            g.scratch.ensure(g.arena.len() + 1, 0);
+        let steps = g.steps(region, vi);
+        g.scratch.ensure(g.arena.len() + 1, 0);
+        for (_, wi) in steps {
             let sc = &mut g.scratch;
             if sc.stamp[wi as usize] != gen {
                 sc.stamp[wi as usize] = gen;
@@ -954,16 +954,10 @@ pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bo
     let mut stack = vec![start];
     while let Some(st) = stack.pop() {
         let (vi, par) = (st >> 1, st & 1);
-        let mask = g.usable_mask(region, vi);
-        for k in 0..g.at(vi).n {
-            if (mask >> k) & 1 == 0 {
-                continue;
-            }
-            let Some(wi) = g.neighbour(vi, k) else {
-                continue;
-            };
-            g.scratch
-                .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+        let steps = g.steps(region, vi);
+        g.scratch
+            .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
+        for (k, wi) in steps {
             let ns = (wi << 1) | (par ^ curves.flip(g, vi, k, wi));
             if ns == target {
                 return true;
