@@ -577,6 +577,12 @@ pub fn simplify(
         }
         progress.finish();
         vol.follow_sweep(sweeper.next)?;
+        if std::env::var_os("ISOTOPO_DEBUG").is_some() {
+            eprintln!(
+                "pass {pass} done: {} closed, {rewinds} rewinds so far, {seconds:?}",
+                removed.len() - closed_before
+            );
+        }
         if removed.len() == closed_before {
             break;
         }

@@ -29,12 +29,25 @@ use std::hash::{BuildHasherDefault, Hasher};
 pub struct FastHasher(u64);
 
 impl Hasher for FastHasher {
+    /// The multiply leaves the low bits depending on the key's low bits only (a vertex key's
+    /// x), and the table picks buckets by the low bits: without this finaliser (murmur3's) every
+    /// vertex of one x column lands in one probe chain.
     fn finish(&self) -> u64 {
-        self.0
+        let mut x = self.0;
+        x ^= x >> 33;
+        x = x.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        x ^= x >> 33;
+        x = x.wrapping_mul(0xc4ce_b9fe_1a85_ec53);
+        x ^ (x >> 33)
     }
+    /// Slices of integers (`[i64; 3]` keys) come here as bytes: eight at a time.
     fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0.rotate_left(5) ^ b as u64).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+        let mut words = bytes.chunks_exact(8);
+        for w in &mut words {
+            self.write_u64(u64::from_le_bytes(w.try_into().expect("8 bytes")));
+        }
+        for &b in words.remainder() {
+            self.write_u64(b as u64);
         }
     }
     fn write_u64(&mut self, i: u64) {
@@ -701,10 +714,8 @@ fn odd_loop_search(
             }
         }
     }
-    let bits = curves.bits;
     let mut budget = EXACT_BUDGET;
     let mut tried: FastMap<u64, ()> = FastMap::default();
-    let mut queue: VecDeque<u32> = VecDeque::new();
     for &s in &sources {
         if budget == 0 {
             break;
@@ -716,59 +727,166 @@ fn odd_loop_search(
         if g.usable_mask(region, si) == 0 {
             continue;
         }
-        let gen = g.scratch.next_generation();
-        g.scratch.ensure((g.arena.len() + 1) << bits, 0);
-        let start = si << bits;
-        let target = (si << bits) | goal;
-        g.scratch.stamp[start as usize] = gen;
-        g.scratch.dist[start as usize] = 0;
-        g.scratch.pred[start as usize] = u32::MAX;
-        queue.clear();
-        queue.push_back(start);
-        let mut found = None;
-        'bfs: while let Some(st) = queue.pop_front() {
-            let d = g.scratch.dist[st as usize];
-            if d as usize + 1 >= best_len || budget == 0 {
-                break;
-            }
-            budget -= 1;
-            let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
-            let steps = g.steps(region, vi);
-            g.scratch
-                .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
-            for (k, wi) in steps {
-                let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
-                let sc = &mut g.scratch;
-                if sc.stamp[ns as usize] == gen {
-                    continue;
-                }
-                sc.stamp[ns as usize] = gen;
-                sc.dist[ns as usize] = d + 1;
-                sc.pred[ns as usize] = st;
-                if ns == target {
-                    found = Some(d + 1);
-                    break 'bfs;
-                }
-                queue.push_back(ns);
-            }
-        }
-        if let Some(len) = found {
-            if (len as usize) < best_len {
-                // Walk back from (s, goal) to (s, 0).
-                let mut path = Vec::with_capacity(len as usize);
-                let mut st = target;
-                while st != start {
-                    path.push(g.vertex(st >> bits));
-                    st = g.scratch.pred[st as usize];
-                }
-                path.reverse();
-                let path = simple_cycle(g, &curves, path, goal);
-                best_len = path.len();
-                best = Some(path);
-            }
-        }
+        // Most sources have no loop shorter than the best so far: a search half as deep tells.
+        let Some((len, meeting)) =
+            odd_length_through(g, &curves, region, si, goal, best_len, &mut budget)
+        else {
+            continue;
+        };
+        // The loop itself as the full-depth search finds it (among equally short loops through
+        // `s`, the same one whichever way the length was found); its meeting walk should that
+        // search be cut short.
+        let path = odd_path_through(g, &curves, region, si, goal, len).unwrap_or(meeting);
+        let path = simple_cycle(g, &curves, path, goal);
+        best_len = path.len();
+        best = Some(path);
     }
     (best, decided)
+}
+
+/// Length of the shortest loop through vertex `si` whose parities are `goal`, if shorter than
+/// `below`, with one such loop as a closed walk. Such a loop of length L shows as the two states
+/// (v, p) and (v, p ^ goal) of its middle vertex v, both within ceil(L / 2) of (s, 0) — the
+/// second half, run backwards and with its parities flipped by `goal`, is a path from (s, 0)
+/// too — so a breadth-first search from (s, 0) need only go half as deep as the loop is long:
+/// a quarter of the states on a surface.
+///
+/// ```text
+///    (s,0) ~~~~~~> (v,p)          the loop: s ~> v, then back from v to s
+///    (s,0) ~~~~~~> (v,p^goal)     along the second path, mirrored
+/// ```
+///
+/// Each state visited is taken from `budget`; running out gives `None`.
+fn odd_length_through(
+    g: &mut Graph,
+    curves: &Curves,
+    region: &dyn Region,
+    si: u32,
+    goal: u32,
+    below: usize,
+    budget: &mut usize,
+) -> Option<(usize, Vec<Vertex>)> {
+    let bits = curves.bits;
+    let gen = g.scratch.next_generation();
+    g.scratch.ensure((g.arena.len() + 1) << bits, 0);
+    let start = si << bits;
+    g.scratch.stamp[start as usize] = gen;
+    g.scratch.dist[start as usize] = 0;
+    g.scratch.pred[start as usize] = u32::MAX;
+    let mut queue = VecDeque::from([start]);
+    // Deepest level that can hold the middle of a loop shorter than `below`.
+    let half = below.saturating_sub(1).div_ceil(2);
+    // (length, the two meeting states)
+    let mut best: Option<(usize, u32, u32)> = None;
+    while let Some(st) = queue.pop_front() {
+        let d = g.scratch.dist[st as usize] as usize;
+        // States found from here on are d + 1 deep: pairs they close are no shorter.
+        if d + 1 > half || best.is_some_and(|b| d + 1 >= b.0) {
+            break;
+        }
+        if *budget == 0 {
+            return None;
+        }
+        *budget -= 1;
+        let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
+        let steps = g.steps(region, vi);
+        g.scratch
+            .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+        for (k, wi) in steps {
+            let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
+            let sc = &mut g.scratch;
+            if sc.stamp[ns as usize] == gen {
+                continue;
+            }
+            sc.stamp[ns as usize] = gen;
+            sc.dist[ns as usize] = d as u32 + 1;
+            sc.pred[ns as usize] = st;
+            let other = ns ^ goal;
+            if sc.stamp[other as usize] == gen {
+                let len = d + 1 + sc.dist[other as usize] as usize;
+                if len < below && best.is_none_or(|b| len < b.0) {
+                    best = Some((len, ns, other));
+                }
+            }
+            queue.push_back(ns);
+        }
+    }
+    let (len, end, other) = best?;
+    // s … v, then back along the other state's path to just after s.
+    let mut walk = states_to(g, end, bits);
+    let mut back = states_to(g, other, bits);
+    back.pop(); // v
+    back.reverse();
+    back.pop(); // s
+    walk.extend(back);
+    if walk.len() > 1 && walk.first() == walk.last() {
+        walk.pop(); // v was s: (s, goal) itself was reached
+    }
+    Some((len, walk))
+}
+
+/// The path of a breadth-first search from (s, 0) to (s, goal), known to be `len` long, as a
+/// closed walk ending at `s`; `None` if it takes more than [`EXACT_BUDGET`] states.
+fn odd_path_through(
+    g: &mut Graph,
+    curves: &Curves,
+    region: &dyn Region,
+    si: u32,
+    goal: u32,
+    len: usize,
+) -> Option<Vec<Vertex>> {
+    let bits = curves.bits;
+    let gen = g.scratch.next_generation();
+    g.scratch.ensure((g.arena.len() + 1) << bits, 0);
+    let start = si << bits;
+    let target = start | goal;
+    g.scratch.stamp[start as usize] = gen;
+    g.scratch.dist[start as usize] = 0;
+    g.scratch.pred[start as usize] = u32::MAX;
+    let mut queue = VecDeque::from([start]);
+    let mut budget = EXACT_BUDGET;
+    'bfs: loop {
+        let st = queue.pop_front()?;
+        let d = g.scratch.dist[st as usize];
+        if d as usize >= len || budget == 0 {
+            return None;
+        }
+        budget -= 1;
+        let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
+        let steps = g.steps(region, vi);
+        g.scratch
+            .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+        for (k, wi) in steps {
+            let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
+            let sc = &mut g.scratch;
+            if sc.stamp[ns as usize] == gen {
+                continue;
+            }
+            sc.stamp[ns as usize] = gen;
+            sc.dist[ns as usize] = d + 1;
+            sc.pred[ns as usize] = st;
+            if ns == target {
+                break 'bfs;
+            }
+            queue.push_back(ns);
+        }
+    }
+    // Walk back from (s, goal) to (s, 0): s last.
+    let mut path = states_to(g, target, bits);
+    path.remove(0);
+    Some(path)
+}
+
+/// The vertices of the search path that ends in state `st` (`bits` parity bits), its source
+/// first.
+fn states_to(g: &Graph, mut st: u32, bits: u32) -> Vec<Vertex> {
+    let mut path = Vec::new();
+    while st != u32::MAX {
+        path.push(g.vertex(st >> bits));
+        st = g.scratch.pred[st as usize];
+    }
+    path.reverse();
+    path
 }
 
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
