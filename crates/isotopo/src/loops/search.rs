@@ -693,7 +693,7 @@ fn odd_loop_search(
     let mut decided = false;
     // Phase 1 (one curve only: closing along it must not change other parities).
     if even.is_empty() {
-        let (first, conclusive) = multi_source(g, &curves, cut, region, limit);
+        let (first, conclusive, meets) = multi_source(g, &curves, cut, region, limit);
         if first.is_none() && conclusive {
             // Every state closer than `limit` was seen: no odd loop is that short.
             return (None, true);
@@ -711,6 +711,10 @@ fn odd_loop_search(
             // Search from the loop's own start first: it finds a loop no longer than the bound.
             if let Some(p) = sources.iter().position(|&v| v == start) {
                 sources.swap(0, p);
+            }
+            if let Some(meets) = meets {
+                let near = near_short_loops(g, region, &meets, best_len);
+                sources.retain(|&v| g.index(v).is_some_and(|i| near.contains_key(&i)));
             }
         }
     }
@@ -889,20 +893,65 @@ fn states_to(g: &Graph, mut st: u32, bits: u32) -> Vec<Vertex> {
     path
 }
 
+/// The vertices within reach of a loop shorter than `below` through them, given the `meets` of
+/// the first phase: a vertex `s` of the cut has such a loop only if its middle vertex `v`, at
+/// most (below - 1) / 2 edges from `s`, has both states closer to the cut than the loop is
+/// long together (each half of the loop is a path from the cut). Most of a long cut is far from
+/// every such `v`, and its vertices need no search of their own.
+///
+/// ```text
+///      s ~~~~~~~~~ v          v: (v, 0) and (v, 1) both near the cut
+///      |           |             (sum of their distances < below)
+///  ----s--- cut ---------     s: within (below - 1) / 2 of some v
+/// ```
+fn near_short_loops(
+    g: &mut Graph,
+    region: &dyn Region,
+    meets: &[(u32, usize)],
+    below: usize,
+) -> FastMap<u32, ()> {
+    let reach = (below.saturating_sub(1) / 2) as u32;
+    let mut near: FastMap<u32, u32> = FastMap::default();
+    let mut queue = VecDeque::new();
+    for &(v, sum) in meets {
+        if sum < below && near.insert(v, 0).is_none() {
+            queue.push_back(v);
+        }
+    }
+    while let Some(v) = queue.pop_front() {
+        let d = near[&v];
+        if d == reach {
+            continue;
+        }
+        for (_, w) in g.steps(region, v) {
+            if let std::collections::hash_map::Entry::Vacant(e) = near.entry(w) {
+                e.insert(d + 1);
+                queue.push_back(w);
+            }
+        }
+    }
+    near.into_keys().map(|v| (v, ())).collect()
+}
+
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
 /// Reaching a vertex of `cut` with odd parity closes a loop: the path, then back along `cut` to
 /// where it started. Returns the shortest such walk (not yet simple) and its start, and whether
 /// the search was conclusive (it did not run out of budget): then no walk means that no loop
 /// crossing `cut` an odd number of times is shorter than `limit` (such a loop passes through a
 /// vertex of `cut`, whose odd state the search reaches no later than the loop's length).
+///
+/// When conclusive and a walk was found, also returns every vertex whose two states were both
+/// reached, with the sum of their distances (see [`near_short_loops`]): the search saw every
+/// state up to the walk's length deep, which covers both halves of any shorter loop.
 type FirstWalk = Option<(Vec<Vertex>, Vertex)>;
+type Meets = Option<Vec<(u32, usize)>>;
 fn multi_source(
     g: &mut Graph,
     curves: &Curves,
     cut: &[Vertex],
     region: &dyn Region,
     limit: usize,
-) -> (FirstWalk, bool) {
+) -> (FirstWalk, bool, Meets) {
     let n = cut.len();
     // Position on the cut of each of its vertices (by number).
     let Some(nums) = cut
@@ -910,12 +959,14 @@ fn multi_source(
         .map(|&v| g.index(v))
         .collect::<Option<Vec<u32>>>()
     else {
-        return (None, false);
+        return (None, false, None);
     };
     let pos: FastMap<u32, usize> = nums.iter().enumerate().map(|(i, &v)| (v, i)).collect();
     let gen = g.scratch.next_generation();
     g.scratch.ensure((g.arena.len() + 1) << 1, 0);
     let mut queue: VecDeque<u32> = VecDeque::new();
+    // Every state reached, for the meets.
+    let mut seen: Vec<u32> = Vec::new();
     for (i, &vi) in nums.iter().enumerate() {
         let st = vi << 1;
         let sc = &mut g.scratch;
@@ -925,6 +976,7 @@ fn multi_source(
             sc.pred[st as usize] = u32::MAX;
             sc.source[st as usize] = i as u32;
             queue.push_back(st);
+            seen.push(st);
         }
     }
     let along = |a: usize, b: usize| {
@@ -963,12 +1015,23 @@ fn multi_source(
                 }
             }
             queue.push_back(ns);
+            seen.push(ns);
         }
     }
     let conclusive = budget > 0;
     let Some((_, end, j)) = best else {
-        return (None, conclusive);
+        return (None, conclusive, None);
     };
+    let sc = &g.scratch;
+    let meets = conclusive.then(|| {
+        seen.iter()
+            .filter(|&&st| st & 1 == 0 && sc.stamp[(st | 1) as usize] == gen)
+            .map(|&st| {
+                let sum = sc.dist[st as usize] + sc.dist[(st | 1) as usize];
+                (st >> 1, sum as usize)
+            })
+            .collect()
+    });
     let src = g.scratch.source[end as usize] as usize;
     // The path from the source to the end…
     let mut path = Vec::new();
@@ -989,7 +1052,7 @@ fn multi_source(
         }
         path.push(cut[i as usize]);
     }
-    (Some((path, cut[src])), conclusive)
+    (Some((path, cut[src])), conclusive, meets)
 }
 
 /// The shortest path within the region from `from` to a vertex `is_target` accepts (`from`

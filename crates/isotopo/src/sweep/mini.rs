@@ -25,83 +25,60 @@ use crate::topology::Connectivity;
 /// outside. Inside samples are 4-adjacent under connectivity 6 (outside 8-adjacent), the reverse
 /// under 26, as in a grid plane of the volume.
 pub fn nesting_depth(inside: &[bool], nu: usize, nv: usize, conn: Connectivity) -> Vec<u32> {
-    // Components of each state, then the tree of components by adjacency.
-    let mut comp = vec![u32::MAX; nu * nv];
-    let mut comp_state = Vec::new();
-    let four = |x: usize, y: usize| -> Vec<(usize, usize)> {
-        let mut v = Vec::with_capacity(4);
-        if x > 0 {
-            v.push((x - 1, y));
-        }
-        if y > 0 {
-            v.push((x, y - 1));
-        }
-        if x + 1 < nu {
-            v.push((x + 1, y));
-        }
-        if y + 1 < nv {
-            v.push((x, y + 1));
-        }
-        v
+    const FOUR: [(isize, isize); 4] = [(-1, 0), (0, -1), (1, 0), (0, 1)];
+    const EIGHT: [(isize, isize); 8] = [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ];
+    let within = |p: usize, (dx, dy): (isize, isize)| -> Option<usize> {
+        let (a, b) = ((p % nu) as isize + dx, (p / nu) as isize + dy);
+        (a >= 0 && b >= 0 && (a as usize) < nu && (b as usize) < nv)
+            .then(|| b as usize * nu + a as usize)
     };
-    let eight = |x: usize, y: usize| -> Vec<(usize, usize)> {
-        let mut v = Vec::with_capacity(8);
-        for dy in -1i64..=1 {
-            for dx in -1i64..=1 {
-                let (a, b) = (x as i64 + dx, y as i64 + dy);
-                if (dx, dy) != (0, 0) && a >= 0 && b >= 0 && (a as usize) < nu && (b as usize) < nv
-                {
-                    v.push((a as usize, b as usize));
-                }
-            }
-        }
-        v
-    };
-    // Under 6, inside is 4-connected; under 26, 8-connected. Outside takes the other.
+    // Components of each state. Under 6, inside is 4-connected; under 26, 8-connected. Outside
+    // takes the other.
     let inside_eight = conn == Connectivity::TwentySix;
+    let mut comp = vec![u32::MAX; nu * nv];
+    let mut n = 0u32;
     let mut stack = Vec::new();
     for start in 0..nu * nv {
         if comp[start] != u32::MAX {
             continue;
         }
-        let id = comp_state.len() as u32;
         let state = inside[start];
-        comp_state.push(state);
-        comp[start] = id;
+        let steps: &[(isize, isize)] = if state == inside_eight { &EIGHT } else { &FOUR };
+        comp[start] = n;
         stack.push(start);
         while let Some(p) = stack.pop() {
-            let (x, y) = (p % nu, p / nu);
-            let nbrs = if state == inside_eight {
-                eight(x, y)
-            } else {
-                four(x, y)
-            };
-            for (a, b) in nbrs {
-                let q = b * nu + a;
+            for q in steps.iter().filter_map(|&d| within(p, d)) {
                 if comp[q] == u32::MAX && inside[q] == state {
-                    comp[q] = id;
+                    comp[q] = n;
                     stack.push(q);
                 }
             }
         }
+        n += 1;
     }
     // Adjacent components (4-adjacency between samples of different states suffices: a region
     // of one state is surrounded 4-wise by its enclosing region). Depth by breadth-first search
     // from the background, which holds the border.
-    let n = comp_state.len();
-    let mut adj = vec![Vec::new(); n];
-    for y in 0..nv {
-        for x in 0..nu {
-            let a = comp[y * nu + x];
-            for (p, q) in four(x, y) {
-                let b = comp[q * nu + p];
-                if a != b && !adj[a as usize].contains(&b) {
-                    adj[a as usize].push(b);
-                }
+    let mut adj = vec![Vec::new(); n as usize];
+    for p in 0..nu * nv {
+        for q in [(1, 0), (0, 1)].into_iter().filter_map(|d| within(p, d)) {
+            let (a, b) = (comp[p], comp[q]);
+            if a != b {
+                adj[a as usize].push(b);
+                adj[b as usize].push(a);
             }
         }
     }
-    let mut depth = vec![u32::MAX; n];
+    let mut depth = vec![u32::MAX; n as usize];
     let background = comp[0];
     depth[background as usize] = 0;
     let mut queue = std::collections::VecDeque::from([background]);
@@ -138,10 +115,12 @@ pub fn build(
     let (nu, nv) = ((u.1 - u.0 + 1) as usize, (v.1 - v.0 + 1) as usize);
     // Each data plane with a ring of outside around it, so the border is background.
     let grid = |w: i64| -> Vec<bool> {
+        let plane = vol.plane(w);
         let mut g = vec![false; (nu + 2) * (nv + 2)];
         for b in 0..nv {
             for a in 0..nu {
-                g[(b + 1) * (nu + 2) + a + 1] = vol.get(u.0 + a as i64, v.0 + b as i64, w);
+                g[(b + 1) * (nu + 2) + a + 1] =
+                    plane.get((u.0 + a as i64) as isize, (v.0 + b as i64) as isize);
             }
         }
         g
@@ -171,18 +150,19 @@ pub fn build(
         uvw: vol.frame.uvw,
         offset: vol.frame.to_original_i(origin),
     };
-    let mut cropped = MaskVolume::new([nu, nv, layers.len()], frame);
+    // Written straight into the rotated volume: (u', v', w') = (v, w, u).
+    let mut rotated = MaskVolume::new([nv, layers.len(), nu], frame.rotated([0, 0, 0]));
     for (w, layer) in layers.iter().enumerate() {
         for b in 0..nv {
             for a in 0..nu {
                 if layer[(b + 1) * (nu + 2) + a + 1] {
-                    cropped.set(a, b, w, true);
+                    rotated.set(b, w, a, true);
                 }
             }
         }
     }
     MiniVolume {
-        volume: cropped.rotated(),
+        volume: rotated,
         origin,
         below: below.len(),
     }

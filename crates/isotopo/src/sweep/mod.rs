@@ -119,6 +119,20 @@ fn corner_to_original(bit: u8, frame: &Frame) -> u8 {
     o[0] | (o[1] << 1) | (o[2] << 2)
 }
 
+/// For each set of corners of a cube (bit b: corner b of this volume's frame), the least of
+/// them in the original frame (a piece's corner in its ribbon's key).
+fn least_original_corners(frame: &Frame) -> [u8; 256] {
+    let mut t = [0u8; 256];
+    for (mask, least) in t.iter_mut().enumerate() {
+        *least = (0..8u8)
+            .filter(|&b| mask & (1 << b) != 0)
+            .map(|b| corner_to_original(b, frame))
+            .min()
+            .unwrap_or(0);
+    }
+    t
+}
+
 /// Original-coordinate box of the cubes (padded indices) `min ..= max` of slice `w`.
 fn cube_box(frame: &Frame, min: [u32; 2], max: [u32; 2], w: i64) -> BBox {
     let mut b = BBox::EMPTY;
@@ -297,6 +311,7 @@ impl Sweeper {
             .collect();
         // Lowest cube (original coordinates) of each ribbon, for numbering surfaces.
         let mut keys = vec![[i64::MAX; 4]; cur.ribbons.len()];
+        let least_corner = least_original_corners(&vol.frame);
         for cube in &cur.cubes {
             let case = &table[cube.case as usize];
             let o = vol
@@ -304,11 +319,7 @@ impl Sweeper {
                 .to_original_i([cube.i as i64 - 1, cube.j as i64 - 1, s]);
             for k in 0..case.n_pieces as usize {
                 let r = cur.piece_ribbon[cube.first_piece as usize + k] as usize;
-                let corner = (0..8u8)
-                    .filter(|&b| case.pieces[k].corners & (1 << b) != 0)
-                    .map(|b| corner_to_original(b, &vol.frame))
-                    .min()
-                    .unwrap_or(0);
+                let corner = least_corner[case.pieces[k].corners as usize];
                 keys[r] = keys[r].min([o[2], o[1], o[0], corner as i64]);
             }
         }

@@ -404,23 +404,6 @@ impl MaskVolume {
             .map(|w| self.plane_once(w).count())
             .sum()
     }
-
-    /// A copy rotated so that the sweep runs along this volume's u axis: (u', v', w') = (v, w, u).
-    pub fn rotated(&self) -> MaskVolume {
-        let [nu, nv, nw] = self.dims;
-        let mut out = MaskVolume::new([nv, nw, nu], self.frame.rotated([0, 0, 0]));
-        for w in 0..nw {
-            let p = self.plane_once(w as i64);
-            for v in 0..nv {
-                for u in 0..nu {
-                    if p.get(u as isize, v as isize) {
-                        out.set(v, w, u, true);
-                    }
-                }
-            }
-        }
-        out
-    }
 }
 
 impl MaskVolume {
