@@ -415,6 +415,10 @@ pub fn simplify(
             let s = sweeper.next;
             let t = std::time::Instant::now();
             let n = sweeper.step(vol)?;
+            if let Some((at, surfels)) = sweeper.take_surfels() {
+                // The loops of the handles found here need this slice's ribbons too.
+                caches.slices.offer(at, surfels);
+            }
             vol.follow_sweep(sweeper.next)?;
             seconds.sweep += t.elapsed().as_secs_f64();
             let first_visit = s > high;

@@ -182,6 +182,16 @@ impl SliceCache {
         }
     }
 
+    /// Keeps the surfels of slice `s` built elsewhere (by the sweep), unless already kept.
+    pub fn offer(&mut self, s: i64, sl: SliceSurfels) {
+        self.clock += 1;
+        if let std::collections::hash_map::Entry::Vacant(e) = self.slices.entry(s) {
+            self.bytes += slice_bytes(&sl);
+            e.insert((sl, self.clock));
+            self.trim();
+        }
+    }
+
     /// The ribbon (in its slice) of a piece whose slice is cached.
     fn ribbon_of(&self, p: &PieceRef) -> Option<u32> {
         let (sl, _) = self.slices.get(&p.cube[2])?;

@@ -346,19 +346,45 @@ impl Graph<'_> {
     /// k), k increasing. Resolving neighbours may number new vertices, so a caller sizes its
     /// state arrays after this.
     #[inline]
-    fn steps(&mut self, region: &dyn Region, i: u32) -> impl Iterator<Item = (usize, u32)> {
+    fn steps(&mut self, region: &dyn Region, i: u32) -> Steps {
         let mask = self.usable_mask(region, i);
-        let mut out = [(0usize, 0u32); MAX_DEGREE];
-        let mut n = 0;
+        let mut out = Steps {
+            k: [0; MAX_DEGREE],
+            w: [0; MAX_DEGREE],
+            n: 0,
+            at: 0,
+        };
         for k in 0..self.arena[i as usize].n {
             if (mask >> k) & 1 == 1 {
                 if let Some(w) = self.neighbour(i, k) {
-                    out[n] = (k, w);
-                    n += 1;
+                    out.k[out.n as usize] = k as u8;
+                    out.w[out.n as usize] = w;
+                    out.n += 1;
                 }
             }
         }
-        out.into_iter().take(n)
+        out
+    }
+}
+
+/// The steps from one vertex (see [`Graph::steps`]), packed small: searches take millions.
+struct Steps {
+    k: [u8; MAX_DEGREE],
+    w: [u32; MAX_DEGREE],
+    n: u8,
+    at: u8,
+}
+
+impl Iterator for Steps {
+    type Item = (usize, u32);
+
+    #[inline]
+    fn next(&mut self) -> Option<(usize, u32)> {
+        (self.at < self.n).then(|| {
+            let j = self.at as usize;
+            self.at += 1;
+            (self.k[j] as usize, self.w[j])
+        })
     }
 }
 
@@ -653,11 +679,12 @@ pub fn odd_loop_below(
 /// `even` an even number of times, shorter than `limit` edges.
 ///
 /// A first breadth-first search from all of `cut` at once gives a loop (a path that crosses,
-/// closed along `cut`) and so an upper bound; then one search per vertex of `cut`, each stopped
-/// at the best length so far, finds the shortest (within [`EXACT_BUDGET`]). The first loop is at
-/// most half of `cut` longer than the shortest (its path is no longer than the shortest loop,
-/// and closing it runs along `cut` the shorter way), so when even that leaves it at
-/// `exact_below` or more, it is returned as it is.
+/// closed along `cut`) and so an upper bound; then one search per vertex of `cut` that can carry
+/// a shorter loop (near a vertex whose two states the first search reached early), each half
+/// as deep as the best length so far, finds the shortest (within [`EXACT_BUDGET`]). The first
+/// loop is at most half of `cut` longer than the shortest (its path is no longer than the
+/// shortest loop, and closing it runs along `cut` the shorter way), so when even that leaves it
+/// at `exact_below` or more, it is returned as it is.
 pub fn shortest_loop_with_parities(
     g: &mut Graph,
     cut: &[Vertex],
@@ -1185,24 +1212,30 @@ mod tests {
                 axis: 0,
             };
             if crate::surface::is_crossing(g.vol, v) {
-                let in_plane = |q: &Vertex| q.axis != 2 && q.p[2] == w;
-                let mut out = vec![v];
-                let (mut prev, mut cur) = (v, v);
-                loop {
-                    let a = g.around(cur).unwrap();
-                    let next = (0..a.n)
-                        .map(|k| a.nbr(k))
-                        .find(|q| in_plane(q) && *q != prev)
-                        .unwrap();
-                    if next == v {
-                        return out;
-                    }
-                    out.push(next);
-                    prev = cur;
-                    cur = next;
-                }
+                return contour_through(g, v, w);
             }
             x += 1;
+        }
+    }
+
+    /// The contour in plane `w` through the crossing `v`.
+    fn contour_through(g: &mut Graph, v: Vertex, w: i64) -> Vec<Vertex> {
+        let in_plane = |q: &Vertex| q.axis != 2 && q.p[2] == w;
+        let mut out = vec![v];
+        let (mut prev, mut cur) = (v, v);
+        loop {
+            let a = g.around(cur).unwrap();
+            let next = (0..a.n)
+                .filter(|&k| !a.diagonal(k))
+                .map(|k| a.nbr(k))
+                .find(|q| in_plane(q) && *q != prev)
+                .unwrap();
+            if next == v {
+                return out;
+            }
+            out.push(next);
+            prev = cur;
+            cur = next;
         }
     }
 
@@ -1233,6 +1266,149 @@ mod tests {
                 around_hole.len()
             );
         }
+    }
+
+    /// Length of the shortest odd loop through `s`: a plain breadth-first search of the double
+    /// cover from (s, 0) to (s, 1), as the searches before the half-depth one did it.
+    fn full_depth_length(g: &mut Graph, curves: &Curves, s: Vertex) -> Option<usize> {
+        let si = g.index(s)?;
+        let (start, target) = (si << 1, (si << 1) | 1);
+        let mut dist: FastMap<u32, usize> = FastMap::default();
+        dist.insert(start, 0);
+        let mut queue = VecDeque::from([start]);
+        while let Some(st) = queue.pop_front() {
+            let d = dist[&st];
+            let steps: Vec<(usize, u32)> = g.steps(&Everywhere, st >> 1).collect();
+            for (k, wi) in steps {
+                let ns = (wi << 1) | ((st & 1) ^ curves.flip(g, st >> 1, k, wi));
+                if ns == target {
+                    return Some(d + 1);
+                }
+                if let std::collections::hash_map::Entry::Vacant(e) = dist.entry(ns) {
+                    e.insert(d + 1);
+                    queue.push_back(ns);
+                }
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn half_depth_and_pruned_searches_find_the_full_searches_lengths() {
+        let vol = torus(24, 7.0, 2.6);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let mut g = Graph::new(&vol, cases(conn));
+            let c = (24.0 - 1.0) / 2.0;
+            let inner = contour_from(&mut g, 11, c as i64, c as i64);
+            let meridian = shortest_odd_loop(&mut g, &inner, &Everywhere, usize::MAX).unwrap();
+            for cut in [&inner, &meridian] {
+                let curves = Curves::new(&mut g, cut, &[]).unwrap();
+                g.scratch.next_region();
+                let mut least = usize::MAX;
+                for &s in cut.iter() {
+                    let full = full_depth_length(&mut g, &curves, s).unwrap();
+                    least = least.min(full);
+                    let si = g.index(s).unwrap();
+                    let mut budget = usize::MAX;
+                    let half = odd_length_through(
+                        &mut g,
+                        &curves,
+                        &Everywhere,
+                        si,
+                        1,
+                        usize::MAX,
+                        &mut budget,
+                    );
+                    let (len, walk) = half.unwrap();
+                    assert_eq!(len, full, "through {s:?}");
+                    // Just deep enough for it.
+                    let mut budget = usize::MAX;
+                    let just = odd_length_through(
+                        &mut g,
+                        &curves,
+                        &Everywhere,
+                        si,
+                        1,
+                        full + 1,
+                        &mut budget,
+                    );
+                    assert_eq!(just.map(|x| x.0), Some(full));
+                    // The meeting walk is a closed walk of that length through s.
+                    assert_eq!(walk.len(), len);
+                    assert_eq!(walk[0], s);
+                    // Nothing shorter than the loop itself.
+                    let mut budget = usize::MAX;
+                    let below =
+                        odd_length_through(&mut g, &curves, &Everywhere, si, 1, full, &mut budget);
+                    assert!(below.is_none());
+                }
+                // The search skipping the cut's far vertices still finds the shortest.
+                let found = shortest_odd_loop(&mut g, cut, &Everywhere, usize::MAX).unwrap();
+                assert_eq!(found.len(), least);
+            }
+        }
+    }
+
+    /// On random volumes (many small handles, loops of every length), the shortest odd loop
+    /// across each contour, with and without a limit, has the length of the shortest of the
+    /// full searches from every vertex of the contour.
+    #[test]
+    fn shortest_odd_loops_of_random_contours_match_the_full_searches() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut compared = 0;
+        for round in 0..6 {
+            let n = 14;
+            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
+            for z in 1..n - 1 {
+                for y in 1..n - 1 {
+                    for x in 1..n - 1 {
+                        vol.set(x, y, z, random() % 100 < 55);
+                    }
+                }
+            }
+            let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut seen: FastMap<u64, ()> = FastMap::default();
+            for w in 2..n as i64 - 2 {
+                for y in 1..n as i64 - 1 {
+                    for x in 0..n as i64 {
+                        let v = Vertex {
+                            p: [x, y, w],
+                            axis: 0,
+                        };
+                        if seen.contains_key(&key(v)) || !crate::surface::is_crossing(&vol, v) {
+                            continue;
+                        }
+                        let cut = contour_through(&mut g, v, w);
+                        for c in &cut {
+                            seen.insert(key(*c), ());
+                        }
+                        if cut.len() < 4 {
+                            continue;
+                        }
+                        let curves = Curves::new(&mut g, &cut, &[]).unwrap();
+                        g.scratch.next_region();
+                        let least = cut
+                            .iter()
+                            .filter_map(|&s| full_depth_length(&mut g, &curves, s))
+                            .min();
+                        for limit in [usize::MAX, 9] {
+                            let found = shortest_odd_loop(&mut g, &cut, &Everywhere, limit)
+                                .map(|l| l.len());
+                            assert_eq!(found, least.filter(|&l| l < limit), "cut {cut:?}");
+                        }
+                        compared += 1;
+                    }
+                }
+            }
+        }
+        assert!(compared > 100, "{compared} contours");
     }
 
     #[test]

@@ -36,10 +36,10 @@ pub fn nesting_depth(inside: &[bool], nu: usize, nv: usize, conn: Connectivity) 
         (0, 1),
         (1, 1),
     ];
-    let within = |p: usize, (dx, dy): (isize, isize)| -> Option<usize> {
-        let (a, b) = ((p % nu) as isize + dx, (p / nu) as isize + dy);
-        (a >= 0 && b >= 0 && (a as usize) < nu && (b as usize) < nv)
-            .then(|| b as usize * nu + a as usize)
+    // Samples as (x, y): no division per neighbour.
+    let within = |(x, y): (usize, usize), (dx, dy): (isize, isize)| -> Option<(usize, usize)> {
+        let (a, b) = (x.wrapping_add_signed(dx), y.wrapping_add_signed(dy));
+        (a < nu && b < nv).then_some((a, b))
     };
     // Components of each state. Under 6, inside is 4-connected; under 26, 8-connected. Outside
     // takes the other.
@@ -54,12 +54,13 @@ pub fn nesting_depth(inside: &[bool], nu: usize, nv: usize, conn: Connectivity) 
         let state = inside[start];
         let steps: &[(isize, isize)] = if state == inside_eight { &EIGHT } else { &FOUR };
         comp[start] = n;
-        stack.push(start);
+        stack.push((start % nu, start / nu));
         while let Some(p) = stack.pop() {
-            for q in steps.iter().filter_map(|&d| within(p, d)) {
+            for (a, b) in steps.iter().filter_map(|&d| within(p, d)) {
+                let q = b * nu + a;
                 if comp[q] == u32::MAX && inside[q] == state {
                     comp[q] = n;
-                    stack.push(q);
+                    stack.push((a, b));
                 }
             }
         }
@@ -69,12 +70,18 @@ pub fn nesting_depth(inside: &[bool], nu: usize, nv: usize, conn: Connectivity) 
     // of one state is surrounded 4-wise by its enclosing region). Depth by breadth-first search
     // from the background, which holds the border.
     let mut adj = vec![Vec::new(); n as usize];
-    for p in 0..nu * nv {
-        for q in [(1, 0), (0, 1)].into_iter().filter_map(|d| within(p, d)) {
-            let (a, b) = (comp[p], comp[q]);
-            if a != b {
-                adj[a as usize].push(b);
-                adj[b as usize].push(a);
+    for y in 0..nv {
+        for x in 0..nu {
+            let a = comp[y * nu + x];
+            for (p, q) in [(1, 0), (0, 1)]
+                .into_iter()
+                .filter_map(|d| within((x, y), d))
+            {
+                let b = comp[q * nu + p];
+                if a != b {
+                    adj[a as usize].push(b);
+                    adj[b as usize].push(a);
+                }
             }
         }
     }

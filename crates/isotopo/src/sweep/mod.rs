@@ -227,6 +227,10 @@ pub struct Sweeper {
     /// Checkpoint at the start of slice s, at index s + 1.
     checkpoints: Vec<Checkpoint>,
     uf: UnionFind,
+    /// [`least_original_corners`] of the volume's frame, made at the first step.
+    least_corner: Option<Box<[u8; 256]>>,
+    /// The surfels of the slice processed last, for a caller that keeps slices.
+    last_surfels: Option<(i64, SliceSurfels)>,
 }
 
 impl Sweeper {
@@ -252,6 +256,8 @@ impl Sweeper {
             probe_node: None,
             checkpoints: Vec::new(),
             uf: UnionFind::default(),
+            least_corner: None,
+            last_surfels: None,
         }
     }
 
@@ -311,7 +317,9 @@ impl Sweeper {
             .collect();
         // Lowest cube (original coordinates) of each ribbon, for numbering surfaces.
         let mut keys = vec![[i64::MAX; 4]; cur.ribbons.len()];
-        let least_corner = least_original_corners(&vol.frame);
+        let least_corner = self
+            .least_corner
+            .get_or_insert_with(|| Box::new(least_original_corners(&vol.frame)));
         for cube in &cur.cubes {
             let case = &table[cube.case as usize];
             let o = vol
@@ -464,7 +472,13 @@ impl Sweeper {
         self.prev_contours = top;
         self.prev_contour_node = contour_node;
         self.next = s + 1;
+        self.last_surfels = Some((s, cur));
         Ok(self.handles.len() - found_before)
+    }
+
+    /// The surfels of the slice the last step processed (once).
+    pub fn take_surfels(&mut self) -> Option<(i64, SliceSurfels)> {
+        self.last_surfels.take()
     }
 
     /// Steps back so that slice `s0` is processed next, forgetting everything found from it on
