@@ -775,6 +775,50 @@ fn odd_loop_search(
     (best, decided)
 }
 
+/// Starts a breadth-first search of the double cover at state (si, 0): a fresh generation of
+/// stamps, the start stamped 0 deep. Returns the generation and the start state.
+fn start_at(g: &mut Graph, bits: u32, si: u32) -> (u32, u32) {
+    let gen = g.scratch.next_generation();
+    g.scratch.ensure((g.arena.len() + 1) << bits, 0);
+    let start = si << bits;
+    g.scratch.stamp[start as usize] = gen;
+    g.scratch.dist[start as usize] = 0;
+    g.scratch.pred[start as usize] = u32::MAX;
+    (gen, start)
+}
+
+/// One step of a breadth-first search of the double cover: the states next to `st` within the
+/// region and not yet stamped `gen` are stamped one deeper, with `st` as their predecessor, and
+/// returned (the first `n` of the array).
+fn expand(
+    g: &mut Graph,
+    curves: &Curves,
+    region: &dyn Region,
+    st: u32,
+    gen: u32,
+) -> ([u32; MAX_DEGREE], usize) {
+    let bits = curves.bits;
+    let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
+    let steps = g.steps(region, vi);
+    g.scratch
+        .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
+    let d = g.scratch.dist[st as usize];
+    let (mut out, mut n) = ([0u32; MAX_DEGREE], 0);
+    for (k, wi) in steps {
+        let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
+        let sc = &mut g.scratch;
+        if sc.stamp[ns as usize] == gen {
+            continue;
+        }
+        sc.stamp[ns as usize] = gen;
+        sc.dist[ns as usize] = d + 1;
+        sc.pred[ns as usize] = st;
+        out[n] = ns;
+        n += 1;
+    }
+    (out, n)
+}
+
 /// Length of the shortest loop through vertex `si` whose parities are `goal`, if shorter than
 /// `below`, with one such loop as a closed walk. Such a loop of length L shows as the two states
 /// (v, p) and (v, p ^ goal) of its middle vertex v, both within ceil(L / 2) of (s, 0) — the
@@ -798,12 +842,7 @@ fn odd_length_through(
     budget: &mut usize,
 ) -> Option<(usize, Vec<Vertex>)> {
     let bits = curves.bits;
-    let gen = g.scratch.next_generation();
-    g.scratch.ensure((g.arena.len() + 1) << bits, 0);
-    let start = si << bits;
-    g.scratch.stamp[start as usize] = gen;
-    g.scratch.dist[start as usize] = 0;
-    g.scratch.pred[start as usize] = u32::MAX;
+    let (gen, start) = start_at(g, bits, si);
     let mut queue = VecDeque::from([start]);
     // Deepest level that can hold the middle of a loop shorter than `below`.
     let half = below.saturating_sub(1).div_ceil(2);
@@ -819,20 +858,9 @@ fn odd_length_through(
             return None;
         }
         *budget -= 1;
-        let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
-        let steps = g.steps(region, vi);
-        g.scratch
-            .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
-        for (k, wi) in steps {
-            let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
-            let sc = &mut g.scratch;
-            if sc.stamp[ns as usize] == gen {
-                continue;
-            }
-            sc.stamp[ns as usize] = gen;
-            sc.dist[ns as usize] = d as u32 + 1;
-            sc.pred[ns as usize] = st;
-            let other = ns ^ goal;
+        let (reached, n) = expand(g, curves, region, st, gen);
+        for &ns in &reached[..n] {
+            let (sc, other) = (&g.scratch, ns ^ goal);
             if sc.stamp[other as usize] == gen {
                 let len = d + 1 + sc.dist[other as usize] as usize;
                 if len < below && best.is_none_or(|b| len < b.0) {
@@ -867,35 +895,18 @@ fn odd_path_through(
     len: usize,
 ) -> Option<Vec<Vertex>> {
     let bits = curves.bits;
-    let gen = g.scratch.next_generation();
-    g.scratch.ensure((g.arena.len() + 1) << bits, 0);
-    let start = si << bits;
+    let (gen, start) = start_at(g, bits, si);
     let target = start | goal;
-    g.scratch.stamp[start as usize] = gen;
-    g.scratch.dist[start as usize] = 0;
-    g.scratch.pred[start as usize] = u32::MAX;
     let mut queue = VecDeque::from([start]);
     let mut budget = EXACT_BUDGET;
     'bfs: loop {
         let st = queue.pop_front()?;
-        let d = g.scratch.dist[st as usize];
-        if d as usize >= len || budget == 0 {
+        if g.scratch.dist[st as usize] as usize >= len || budget == 0 {
             return None;
         }
         budget -= 1;
-        let (vi, par) = (st >> bits, st & ((1 << bits) - 1));
-        let steps = g.steps(region, vi);
-        g.scratch
-            .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
-        for (k, wi) in steps {
-            let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
-            let sc = &mut g.scratch;
-            if sc.stamp[ns as usize] == gen {
-                continue;
-            }
-            sc.stamp[ns as usize] = gen;
-            sc.dist[ns as usize] = d + 1;
-            sc.pred[ns as usize] = st;
+        let (reached, n) = expand(g, curves, region, st, gen);
+        for &ns in &reached[..n] {
             if ns == target {
                 break 'bfs;
             }
@@ -1018,23 +1029,11 @@ fn multi_source(
             break;
         }
         budget -= 1;
-        let (vi, par) = (st >> 1, st & 1);
-        let steps = g.steps(region, vi);
-        g.scratch
-            .ensure((g.arena.len() + 1) << 1, g.arena.len() + 1);
-        for (k, wi) in steps {
-            let np = par ^ curves.flip(g, vi, k, wi);
-            let ns = (wi << 1) | np;
-            let sc = &mut g.scratch;
-            if sc.stamp[ns as usize] == gen {
-                continue;
-            }
-            sc.stamp[ns as usize] = gen;
-            sc.dist[ns as usize] = d + 1;
-            sc.pred[ns as usize] = st;
-            sc.source[ns as usize] = src;
-            if np == 1 {
-                if let Some(&j) = pos.get(&wi) {
+        let (reached, k) = expand(g, curves, region, st, gen);
+        for &ns in &reached[..k] {
+            g.scratch.source[ns as usize] = src;
+            if ns & 1 == 1 {
+                if let Some(&j) = pos.get(&(ns >> 1)) {
                     let total = d as usize + 1 + along(src as usize, j);
                     if best.is_none_or(|b| total < b.0) {
                         best = Some((total, ns, j));
