@@ -931,7 +931,8 @@ fn states_to(g: &Graph, mut st: u32, bits: u32) -> Vec<Vertex> {
     path
 }
 
-/// The vertices within reach of a loop shorter than `below` through them, given the `meets` of
+/// The vertices within reach of a loop shorter than `below` through them (with their distance
+/// from the nearest meet), given the `meets` of
 /// the first phase: a vertex `s` of the cut has such a loop only if its middle vertex `v`, at
 /// most (below - 1) / 2 edges from `s`, has both states closer to the cut than the loop is
 /// long together (each half of the loop is a path from the cut). Most of a long cut is far from
@@ -947,7 +948,7 @@ fn near_short_loops(
     region: &dyn Region,
     meets: &[(u32, usize)],
     below: usize,
-) -> FastMap<u32, ()> {
+) -> FastMap<u32, u32> {
     let reach = (below.saturating_sub(1) / 2) as u32;
     let mut near: FastMap<u32, u32> = FastMap::default();
     let mut queue = VecDeque::new();
@@ -968,7 +969,7 @@ fn near_short_loops(
             }
         }
     }
-    near.into_keys().map(|v| (v, ())).collect()
+    near
 }
 
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
@@ -1059,15 +1060,9 @@ fn multi_source(
             .collect()
     });
     let src = g.scratch.source[end as usize] as usize;
-    // The path from the source to the end…
-    let mut path = Vec::new();
-    let mut st = end;
-    while st != u32::MAX {
-        path.push(g.vertex(st >> 1));
-        st = g.scratch.pred[st as usize];
-    }
-    path.reverse(); // source … end
-                    // …then along the cut from the end back to the source (excluding both).
+    // The path from the source to the end, then along the cut from the end back to the source
+    // (excluding both).
+    let mut path = states_to(g, end, 1);
     let forward = (src + n - j) % n; // steps from j forward to src
     let step: isize = if forward <= n - forward { 1 } else { -1 };
     let mut i = j as isize;
@@ -1181,7 +1176,7 @@ pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::{Frame, MaskVolume};
+    use crate::sweep::{walk_contour, Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
     /// A solid torus about z: centre (c, c, c), radii R, r.
@@ -1211,30 +1206,9 @@ mod tests {
                 axis: 0,
             };
             if crate::surface::is_crossing(g.vol, v) {
-                return contour_through(g, v, w);
+                return walk_contour(g, v, w).unwrap();
             }
             x += 1;
-        }
-    }
-
-    /// The contour in plane `w` through the crossing `v`.
-    fn contour_through(g: &mut Graph, v: Vertex, w: i64) -> Vec<Vertex> {
-        let in_plane = |q: &Vertex| q.axis != 2 && q.p[2] == w;
-        let mut out = vec![v];
-        let (mut prev, mut cur) = (v, v);
-        loop {
-            let a = g.around(cur).unwrap();
-            let next = (0..a.n)
-                .filter(|&k| !a.diagonal(k))
-                .map(|k| a.nbr(k))
-                .find(|q| in_plane(q) && *q != prev)
-                .unwrap();
-            if next == v {
-                return out;
-            }
-            out.push(next);
-            prev = cur;
-            cur = next;
         }
     }
 
@@ -1384,7 +1358,7 @@ mod tests {
                         if seen.contains_key(&key(v)) || !crate::surface::is_crossing(&vol, v) {
                             continue;
                         }
-                        let cut = contour_through(&mut g, v, w);
+                        let cut = walk_contour(&mut g, v, w).unwrap();
                         for c in &cut {
                             seen.insert(key(*c), ());
                         }

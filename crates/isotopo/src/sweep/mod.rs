@@ -162,7 +162,7 @@ fn contour_vertex(
 
 /// The contour through `start` (a crossing on an edge lying in plane `w`), as its vertices in
 /// order: walk along the neighbours that stay in the plane.
-fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
+pub(crate) fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
     let in_plane = |x: &Vertex| x.axis != 2 && x.p[2] == w;
     let mut out = vec![start];
     let mut prev = start;
