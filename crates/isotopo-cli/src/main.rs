@@ -802,13 +802,10 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         t => t,
     };
     let limits = isotopo::loops::Limits {
-        reeb: usize::MAX,
         cross: tau
             .filter(|t| t.is_finite())
             .map(|t| t.ceil() as usize)
             .unwrap_or(usize::MAX),
-        exact: usize::MAX,
-        size_only: false,
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
@@ -1210,6 +1207,17 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
             outcome.kept.len(),
             parts.join(", ")
         );
+    }
+    match outcome.certified {
+        Some(true) => println!(
+            "checked     no loop shorter than tau {} is left (every loop of the result crosses a checked curve)",
+            num(a.tau)
+        ),
+        Some(false) => println!(
+            "checked     NOT proven that no loop shorter than tau {} is left (see the kept handles)",
+            num(a.tau)
+        ),
+        None => {}
     }
     println!(
         "samples     {} changed ({} filled, {} cut), all within {:.1} voxels ({:.1} mm) of a closed loop; wall values: inside {}, outside {}",

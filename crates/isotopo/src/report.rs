@@ -279,6 +279,7 @@ pub fn simplify_json(
         "max_distance": max_distance,
         "max_distance_mm": max_distance_mm,
         "passes": outcome.passes,
+        "certified": outcome.certified,
         "rewinds": outcome.rewinds,
         "closures_refused": outcome.refused,
         "seconds_stages": outcome.seconds,

@@ -21,7 +21,7 @@
 
 use crate::closure::{self, base_thickness, Operation};
 use crate::error::{Error, Result};
-use crate::loops::search::{FastMap, Graph, GraphCache};
+use crate::loops::search::{self, FastMap, Graph, GraphCache};
 use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, SliceCache};
 use crate::progress::Progress;
 use crate::surface::Vertex;
@@ -78,13 +78,7 @@ impl SimplifyOptions {
         } else {
             usize::MAX
         };
-        Limits {
-            reeb: usize::MAX,
-            cross,
-            exact: cross,
-            // The ratio of the loops needs both measured.
-            size_only: self.max_ratio.is_none(),
-        }
+        Limits { cross }
     }
 }
 
@@ -111,8 +105,12 @@ pub struct Removed {
     /// Length of the closed loop (voxel edges and mm).
     pub length: usize,
     pub length_mm: f64,
-    /// Half-thickness of the wall (voxels).
+    /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
+    /// minimum-cut wall, the margin of the box it was cut in).
     pub thickness: f64,
+    /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`
+    /// or `min_cut` (the fewest samples separating the fan's two faces).
+    pub wall: &'static str,
     /// Samples this closure flipped.
     pub samples_changed: usize,
     /// Handles the wall removed: 1, or more when it also closed tiny handles right beside.
@@ -172,6 +170,11 @@ pub struct Outcome {
     pub intra_ribbon: usize,
     /// Full sweeps run (the last one closed nothing, unless the limit was reached).
     pub passes: usize,
+    /// With a finite tau (both operations, no `--max-ratio`): is it proven that the result has
+    /// no non-separating loop shorter than tau? Every kept handle has two closed curves that no
+    /// loop below tau crosses an odd number of times, and together they span every loop of the
+    /// surface (see [`crate::loops::basis`]). `None` where no such promise is made.
+    pub certified: Option<bool>,
     /// How often the sweep stepped back after closures.
     pub rewinds: usize,
     /// Closures tried and refused by the local check.
@@ -380,6 +383,216 @@ fn max_distance(samples: &[[i64; 3]], points: &[[f64; 3]], affine: &Affine) -> (
     worst
 }
 
+/// What [`certify`] found for a handle with no loop below tau.
+enum Certificate {
+    /// Closed curves that no loop below tau crosses an odd number of times.
+    Curves(Vec<Vec<Vertex>>),
+    /// Its ribbon's curves came with another handle of the same step.
+    Shared,
+    /// A loop below tau after all: the handle's loops to close (the loop, and the curve it
+    /// crosses once as its partner).
+    Below(HandleLoops),
+    /// A search ran out of its budget: nothing is proven.
+    Unsure,
+}
+
+/// The curves that prove a handle has no loop below tau, or a loop below tau found on the way.
+///
+/// - A Reeb-cycle handle: its cut and the loop round its cycle, from its measurement (no loop
+///   below tau crosses the cut, nor that loop, an odd number of times).
+/// - An intra-ribbon handle: its ribbon's homology generators (2 × the ribbon's genus closed
+///   curves on the surface, shared by the ribbon's handles), each searched for a loop below tau
+///   crossing it an odd number of times.
+#[allow(clippy::too_many_arguments)]
+fn certify(
+    vol: &MaskVolume,
+    h: &LocatedHandle,
+    l: &HandleLoops,
+    conn: Connectivity,
+    limits: Limits,
+    affine: &Affine,
+    caches: &mut Caches,
+    ribbons: &mut FastMap<(i64, u32), ()>,
+) -> Certificate {
+    let Some((slice, ribbon)) = h.ribbon else {
+        return match (&l.basis, l.exact) {
+            (Some((p, q)), true) => Certificate::Curves(vec![p.clone(), q.clone()]),
+            _ => Certificate::Unsure,
+        };
+    };
+    if ribbons.insert((slice, ribbon), ()).is_some() {
+        return Certificate::Shared;
+    }
+    let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut caches.graph));
+    let out = (|| {
+        let Some(generators) = loops::ribbon_generators(&mut g, &mut caches.slices, slice, ribbon)
+        else {
+            return Certificate::Unsure;
+        };
+        for b in &generators {
+            let found = search::odd_loop(&mut g, b, &search::Everywhere, limits.cross);
+            match found.found {
+                Some(short) => {
+                    let describe =
+                        |x: &[Vertex], p: &[Vertex]| loops::describe(vol, x, Some(p), affine);
+                    return Certificate::Below(HandleLoops {
+                        reeb: Some(describe(&short, b)),
+                        cross: Some(describe(b, &short)),
+                        exact: true,
+                        basis: None,
+                    });
+                }
+                None if !found.exact => return Certificate::Unsure,
+                None => {}
+            }
+        }
+        Certificate::Curves(generators)
+    })();
+    caches.graph = g.into_cache();
+    out
+}
+
+/// A wall to try across a loop.
+#[derive(Clone, Copy, Debug)]
+enum Wall {
+    /// The samples within this distance of the loop's spanning fan.
+    Fan(f64),
+    /// One sample near the centroid of a short loop.
+    Single([i64; 3]),
+    /// The smallest set of samples separating the fan's two faces within a box this much larger
+    /// than the loop's, with the + face as the source or not.
+    MinCut(i64, bool),
+}
+
+impl Wall {
+    fn thickness(self) -> f64 {
+        match self {
+            Wall::Fan(d) => d,
+            Wall::Single(_) => SINGLE_SAMPLE_REACH,
+            Wall::MinCut(margin, _) => margin as f64,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Wall::Fan(_) => "fan",
+            Wall::Single(_) => "single_sample",
+            Wall::MinCut(..) => "min_cut",
+        }
+    }
+}
+
+/// Margins of the boxes minimum-cut walls are cut in, tried in turn.
+const MIN_CUT_MARGINS: [i64; 3] = [2, 4, 8];
+
+/// The walls tried across a loop, in order: fans of growing thickness; for a short loop round a
+/// corner or edge contact, single samples (one may do); then minimum cuts in growing boxes.
+fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
+    let mut out: Vec<Wall> = EXTRA_THICKNESS
+        .iter()
+        .map(|extra| Wall::Fan(base_thickness(op, conn) + extra))
+        .collect();
+    if lp.length <= SINGLE_SAMPLE_LOOP {
+        out.extend(
+            closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
+                .into_iter()
+                .map(Wall::Single),
+        );
+    }
+    for margin in MIN_CUT_MARGINS {
+        out.extend([Wall::MinCut(margin, true), Wall::MinCut(margin, false)]);
+    }
+    out
+}
+
+/// Tries the walls across `lp` by each of `ops` until one is kept (see [`closure::close`]).
+fn close_loop(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    lp: &Loop,
+    partner: &[Vertex],
+    ops: &[Operation],
+    graph: &mut GraphCache,
+    refused: &mut usize,
+) -> Option<(closure::Applied, Wall)> {
+    let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
+    for &op in ops {
+        for w in walls_for(lp, op, conn) {
+            let samples = match w {
+                Wall::Fan(d) => closure::wall(&points, d),
+                Wall::Single([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
+                Wall::Single(q) => vec![q],
+                Wall::MinCut(margin, plus) => {
+                    match closure::min_cut_wall(vol, conn, &lp.vertices, op, margin, plus) {
+                        Some(x) => x,
+                        None => continue,
+                    }
+                }
+            };
+            match closure::close(vol, conn, &lp.vertices, partner, op, samples, graph) {
+                Some(applied) => return Some((applied, w)),
+                None => *refused += 1,
+            }
+        }
+    }
+    None
+}
+
+/// Closes one of a handle's loops: the candidates (loops below tau, shortest first), then, if
+/// every wall across them is refused, the handle's other loop whatever its length (measured now
+/// if its search stopped at tau). Returns the loop closed, how, and with which wall.
+fn close_handle<'l>(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    l: &'l HandleLoops,
+    candidates: &[(LoopKind, &'l Loop)],
+    affine: &Affine,
+    graph: &mut GraphCache,
+    refused: &mut usize,
+) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+    let conn = opts.conn;
+    let partner_of = |which: LoopKind| match which {
+        LoopKind::Reeb => l.cross.as_ref(),
+        LoopKind::Cross => l.reeb.as_ref(),
+    };
+    // Without a partner loop, the side the loop goes round was judged from its fan alone: if
+    // no wall of that kind closes it, try the other kind (every wall is verified either way).
+    let ops_for = |lp: &Loop, has_partner: bool| {
+        let op = operation_for(lp);
+        if !has_partner && opts.mode == Mode::Both {
+            vec![op, opposite(op)]
+        } else {
+            vec![op]
+        }
+    };
+    for &(which, lp) in candidates {
+        let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
+        let ops = ops_for(lp, !partner.is_empty());
+        if let Some((a, w)) = close_loop(vol, conn, lp, partner, &ops, graph, refused) {
+            return Some((which, std::borrow::Cow::Borrowed(lp), a, w));
+        }
+    }
+    // The other loop of the shortest candidate, however long.
+    let &(which, lp) = candidates.first()?;
+    let other = match which {
+        LoopKind::Reeb => LoopKind::Cross,
+        LoopKind::Cross => LoopKind::Reeb,
+    };
+    let found = match partner_of(which) {
+        Some(x) => std::borrow::Cow::Borrowed(x),
+        None => {
+            let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(graph));
+            let x = loops::cross_loop(&mut g, &lp.vertices, usize::MAX);
+            *graph = g.into_cache();
+            std::borrow::Cow::Owned(loops::describe(vol, &x?, Some(&lp.vertices), affine))
+        }
+    };
+    let ops = ops_for(&found, true);
+    let ops: Vec<Operation> = ops.into_iter().filter(|&op| opts.mode.allows(op)).collect();
+    let (a, w) = close_loop(vol, conn, &found, &lp.vertices, &ops, graph, refused)?;
+    Some((other, found, a, w))
+}
+
 /// Removes every handle of `vol` smaller than `opts.tau` (see the module documentation). `vol`
 /// is edited in place; the outcome lists the edits in original coordinates.
 pub fn simplify(
@@ -398,9 +611,15 @@ pub fn simplify(
     let mut kept: Vec<(i64, Kept)> = Vec::new();
     let mut pass = 0;
     let mut seconds = StageSeconds::default();
+    // The certificate: closed curves that no loop below tau crosses an odd number of times,
+    // from the last pass (see `certify`), and whether every kept handle has them.
+    let certifying = opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none();
+    let mut basis: Vec<(i64, Vec<Vec<Vertex>>)> = Vec::new();
+    let mut certified = None;
     loop {
         pass += 1;
         kept.clear();
+        basis.clear();
         let closed_before = removed.len();
         let mut sweeper = Sweeper::new(conn);
         let mut caches = Caches {
@@ -448,6 +667,8 @@ pub fn simplify(
             let t = std::time::Instant::now();
             let mut order: Vec<usize> = (0..n).collect();
             order.sort_by_key(|&i| measured[i].size().unwrap_or(usize::MAX));
+            // Ribbons of this step whose generators were checked.
+            let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
             // Walls written at this step, as local boxes; the lowest slice they touched.
             let mut walls: Vec<BBox> = Vec::new();
             let mut lowest = i64::MAX;
@@ -461,8 +682,33 @@ pub fn simplify(
                     reason,
                     bbox: l.bbox().unwrap_or(h.bbox),
                 };
-                let candidates = match plan(l, opts) {
-                    Ok(c) => c,
+                // A handle with no loop below tau is kept once its curves are certified: no
+                // loop below tau crosses them (see `certify`); else the loop found is closed.
+                let found_loops;
+                let (l, candidates) = match plan(l, opts) {
+                    Ok(c) => (l, c),
+                    Err(KeepReason::Size) if certifying => {
+                        match certify(vol, h, l, conn, limits, affine, &mut caches, &mut ribbons) {
+                            Certificate::Curves(curves) => {
+                                basis.push((s, curves));
+                                kept.push((s, keep(KeepReason::Size)));
+                                continue;
+                            }
+                            Certificate::Shared => {
+                                kept.push((s, keep(KeepReason::Size)));
+                                continue;
+                            }
+                            Certificate::Unsure => {
+                                kept.push((s, keep(KeepReason::Unmeasured)));
+                                continue;
+                            }
+                            Certificate::Below(short) => {
+                                found_loops = short;
+                                let c = plan(&found_loops, opts).expect("a loop below tau");
+                                (&found_loops, c)
+                            }
+                        }
+                    }
                     Err(reason) => {
                         kept.push((s, keep(reason)));
                         continue;
@@ -476,60 +722,16 @@ pub fn simplify(
                 {
                     continue;
                 }
-                let mut done = None;
-                'loops: for &(which, lp) in &candidates {
-                    let op = operation_for(lp);
-                    let partner: &[Vertex] = match which {
-                        LoopKind::Reeb => l.cross.as_ref(),
-                        LoopKind::Cross => l.reeb.as_ref(),
-                    }
-                    .map_or(&[], |x| &x.vertices);
-                    // Without a partner loop, the side the loop goes round was judged from its
-                    // fan alone: if no wall of that kind closes it, try the other kind (every
-                    // wall is verified either way).
-                    let ops = if partner.is_empty() && opts.mode == Mode::Both {
-                        vec![op, opposite(op)]
-                    } else {
-                        vec![op]
-                    };
-                    let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
-                    for op in ops {
-                        // Walls of growing thickness across the loop's fan; then, for a short
-                        // loop round a corner or edge contact, single samples (one may do).
-                        let thick = EXTRA_THICKNESS
-                            .iter()
-                            .map(|extra| (None, base_thickness(op, conn) + extra));
-                        let singles = if lp.length <= SINGLE_SAMPLE_LOOP {
-                            closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
-                        } else {
-                            Vec::new()
-                        };
-                        let singles = singles.into_iter().map(|q| (Some(q), SINGLE_SAMPLE_REACH));
-                        for (sample, d) in thick.chain(singles) {
-                            let wall = match sample {
-                                None => closure::wall(&points, d),
-                                Some([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
-                                Some(q) => vec![q],
-                            };
-                            match closure::close(
-                                vol,
-                                conn,
-                                &lp.vertices,
-                                partner,
-                                op,
-                                wall,
-                                &mut caches.graph,
-                            ) {
-                                Some(applied) => {
-                                    done = Some((which, lp, applied, d));
-                                    break 'loops;
-                                }
-                                None => refused += 1,
-                            }
-                        }
-                    }
-                }
-                let Some((which, lp, applied, d)) = done else {
+                let done = close_handle(
+                    vol,
+                    opts,
+                    l,
+                    &candidates,
+                    affine,
+                    &mut caches.graph,
+                    &mut refused,
+                );
+                let Some((which, lp, applied, wall_kind)) = done else {
                     kept.push((s, keep(KeepReason::ClosureFailed)));
                     continue;
                 };
@@ -556,7 +758,8 @@ pub fn simplify(
                     operation: applied.op,
                     length: lp.length,
                     length_mm: lp.length_mm,
-                    thickness: d,
+                    thickness: wall_kind.thickness(),
+                    wall: wall_kind.name(),
                     samples_changed: changed.len(),
                     handles: applied.handles,
                     max_distance: dist,
@@ -575,11 +778,31 @@ pub fn simplify(
                 caches.forget_near(&walls);
                 sweeper.rewind(vol, to);
                 kept.retain(|(at, _)| *at < to);
+                basis.retain(|(at, _)| *at < to);
                 rewinds += 1;
                 vol.follow_sweep(sweeper.next)?;
             }
         }
         progress.finish();
+        if removed.len() == closed_before {
+            // The last pass: what it kept is the result; check its certificate.
+            certified = certifying.then(|| {
+                kept.iter().all(|(_, k)| k.reason == KeepReason::Size) && {
+                    let curves: Vec<Vec<Vertex>> =
+                        basis.iter().flat_map(|(_, c)| c.clone()).collect();
+                    let mut g = Graph::new(vol, cases(conn));
+                    let rank = loops::basis::crossing_rank(&mut g, &curves);
+                    if std::env::var_os("ISOTOPO_DEBUG").is_some() {
+                        eprintln!(
+                            "certificate: {} curves, rank {rank:?}, {} kept",
+                            curves.len(),
+                            kept.len()
+                        );
+                    }
+                    rank == Some(2 * kept.len())
+                }
+            });
+        }
         vol.follow_sweep(sweeper.next)?;
         if std::env::var_os("ISOTOPO_DEBUG").is_some() {
             eprintln!(
@@ -600,6 +823,10 @@ pub fn simplify(
             break;
         }
     }
+    if certifying && certified.is_none() {
+        // The pass limit was reached: the last pass closed something.
+        certified = Some(false);
+    }
     // Samples that end on the other side, plane by plane (out of core, each read once).
     let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
     flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
@@ -619,6 +846,7 @@ pub fn simplify(
         edits,
         intra_ribbon,
         passes: pass,
+        certified,
         rewinds,
         refused,
         seconds,

@@ -22,6 +22,10 @@
 //! the wall is one connected piece (so the surface does not fall apart, and the solid keeps its
 //! components and cavities). Otherwise the volume is restored.
 
+mod mincut;
+
+pub use mincut::min_cut_wall;
+
 use crate::loops::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
 use crate::surface::{vertex_of, PieceRef, Vertex};
 use crate::sweep::MaskVolume;

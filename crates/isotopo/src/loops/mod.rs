@@ -12,17 +12,18 @@
 //! bounds a disk inside the material does not link its partner pushed off into the void, and
 //! links it once when pushed into the material.
 
+pub mod basis;
 pub mod search;
 
 use crate::error::Result;
 use crate::surface::{PieceRef, Vertex};
-use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, Node, NodeKind};
+use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
 use search::{
-    odd_loop_below, odd_simple_loop, path_to, short_odd_loop, shortest_odd_loop, Everywhere,
-    FastMap, Graph, InBox, PieceSet, Region,
+    any_odd_loop, odd_loop, odd_simple_loop, path_to, shortest_odd_loop, Everywhere, FastMap,
+    Graph, InBox, PieceSet, Region,
 };
 
 /// What a loop's spanning disk would pass through.
@@ -49,11 +50,17 @@ pub struct Loop {
     pub encloses: Encloses,
 }
 
-/// A handle's two loops. Either may be missing when its search was cut short by a limit.
+/// A handle's two loops. Either may be missing when its search stopped at a limit.
 #[derive(Clone, Debug)]
 pub struct HandleLoops {
     pub reeb: Option<Loop>,
     pub cross: Option<Loop>,
+    /// Each loop found is the shortest of its kind, and each missing one has none shorter than
+    /// the limit (false when a search ran out of its budget of states first).
+    pub exact: bool,
+    /// Two closed curves on the surface that cross once, such that no loop shorter than the
+    /// handle's size (or the limit) crosses either an odd number of times (see [`measure`]).
+    pub basis: Option<(Vec<Vertex>, Vec<Vertex>)>,
 }
 
 impl HandleLoops {
@@ -97,26 +104,14 @@ impl HandleLoops {
 /// Limits on the searches (edges).
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// Longest Reeb loop looked for.
-    pub reeb: usize,
-    /// Longest cross loop looked for (`tau` when simplifying: longer cannot matter).
+    /// Longest cross and Reeb loop looked for (simplify: tau, or tau times `--max-ratio`;
+    /// longer loops cannot change a decision). With `usize::MAX` both loops are measured
+    /// exactly, within the searches' budgets.
     pub cross: usize,
-    /// Reeb loops known to be at least this long may come out longer than the shortest (they
-    /// still cross their cycle once, so they still define the cross loop).
-    pub exact: usize,
-    /// Only the handle's size and its smaller loop matter (simplify): when the cross loop of a
-    /// first, quickly found Reeb loop is shorter than any Reeb loop can be, the shortest Reeb
-    /// loop is not looked for, and the Reeb loop reported is that first one.
-    pub size_only: bool,
 }
 
 impl Limits {
-    pub const NONE: Limits = Limits {
-        reeb: usize::MAX,
-        cross: usize::MAX,
-        exact: usize::MAX,
-        size_only: false,
-    };
+    pub const NONE: Limits = Limits { cross: usize::MAX };
 }
 
 /// Maps a vertex between frames (both relative to the original volume).
@@ -230,61 +225,6 @@ impl SliceCache {
     }
 }
 
-/// The ribbons of a top-level Reeb cycle, as a region: a piece belongs when its slice's ribbon
-/// label is one of the cycle's ribbons in that slice.
-struct CycleRegion<'c> {
-    cache: &'c SliceCache,
-    ribbons: FastMap<i64, Vec<u32>>,
-}
-
-impl CycleRegion<'_> {
-    /// The region of a top-level handle's cycle (building its slices' surfels).
-    fn new<'c>(vol: &MaskVolume, cache: &'c mut SliceCache, h: &Handle) -> CycleRegion<'c> {
-        let mut ribbons: FastMap<i64, Vec<u32>> = FastMap::default();
-        cache.trim();
-        for n in h
-            .located
-            .cycle
-            .iter()
-            .filter(|n| n.kind == NodeKind::Ribbon)
-        {
-            ribbons.entry(n.level as i64).or_default().push(n.local);
-            cache.ensure(vol, n.level as i64);
-        }
-        CycleRegion { cache, ribbons }
-    }
-}
-
-impl Region for CycleRegion<'_> {
-    fn allows(&self, p: &PieceRef) -> bool {
-        self.ribbons.get(&p.cube[2]).is_some_and(|ribbons| {
-            self.cache
-                .ribbon_of(p)
-                .is_some_and(|r| ribbons.contains(&r))
-        })
-    }
-}
-
-/// A lower bound on the length of any loop round a top-level cycle: it reaches the cycle's
-/// lowest and highest ribbons, and an edge moves at most one plane along the sweep, so it is at
-/// least twice their distance (less one plane each way).
-fn reeb_lower_bound(h: &Handle) -> usize {
-    if !matches!(h.located.volume, CycleVolume::Top) {
-        return 0;
-    }
-    let levels = h
-        .located
-        .cycle
-        .iter()
-        .filter(|n| n.kind == NodeKind::Ribbon)
-        .map(|n| n.level as i64);
-    let (lo, hi) = levels.fold((i64::MAX, i64::MIN), |(a, b), l| (a.min(l), b.max(l)));
-    if lo > hi {
-        return 0;
-    }
-    (2 * (hi - lo - 1)).max(0) as usize
-}
-
 /// One ribbon of the swept volume, as a region.
 struct OneRibbon<'c> {
     cache: &'c SliceCache,
@@ -298,8 +238,40 @@ impl Region for OneRibbon<'_> {
     }
 }
 
-/// Vertices a path through one ribbon may visit before the chain gives up.
-const RIBBON_PATH_BUDGET: usize = 1 << 16;
+/// The homology generators of ribbon `ribbon` of slice `slice` of the swept volume, its
+/// boundary contours capped: 2 × its genus closed curves on the surface that span every loop of
+/// the capped ribbon (a tree–cotree decomposition, see [`crate::sweep::local`]).
+pub fn ribbon_generators(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    slice: i64,
+    ribbon: u32,
+) -> Option<Vec<Vec<Vertex>>> {
+    cache.ensure(top.vol, slice);
+    let (sl, _) = cache.slices.get(&slice)?;
+    let table = top.table;
+    let mut verts = Vec::new();
+    for cube in &sl.cubes {
+        let case = &table[cube.case as usize];
+        let q = [cube.i as i64 - 1, cube.j as i64 - 1, slice];
+        for k in 0..case.n_pieces as usize {
+            if sl.piece_ribbon[cube.first_piece as usize + k] == ribbon {
+                for lp in &case.pieces[k].loops {
+                    verts.extend(lp.iter().map(|&e| crate::surface::vertex_of(q, e)));
+                }
+            }
+        }
+    }
+    verts.sort();
+    verts.dedup();
+    let cache: &SliceCache = cache;
+    let region = OneRibbon {
+        cache,
+        slice,
+        ribbon,
+    };
+    crate::sweep::local::generators(top, &verts, &region)
+}
 
 /// A first loop around a top-level Reeb cycle, chained ribbon by ribbon: from a vertex of the
 /// cut, the shortest path through each ribbon of the cycle to the contour it shares with the
@@ -317,79 +289,58 @@ const RIBBON_PATH_BUDGET: usize = 1 << 16;
 /// `None` if the cycle is not top-level or a path is not found (the caller searches instead).
 fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Vec<Vertex>> {
     let l = &h.located;
-    if !matches!(l.volume, CycleVolume::Top) || l.cut.len() < 2 {
+    let (cycle, n) = (&l.cycle, l.cycle.len());
+    if !matches!(l.volume, CycleVolume::Top)
+        || l.cut.len() < 2
+        || n < 4
+        || !n.is_multiple_of(2)
+        || l.contour_starts.len() != n
+        || cycle[l.cut_at].kind != NodeKind::Contour
+    {
         return None;
     }
     let vol = top.vol;
-    let cycle = &l.cycle;
-    let n = cycle.len();
-    if n < 4 || !n.is_multiple_of(2) {
-        return None;
-    }
-    // Surfels of the slices on either side of the cut's plane now; the others as the chain
-    // reaches them (a tall cycle's slices may not all fit in the cache's budget at once).
-    cache.trim();
-    for k in [l.cut[0].p[2] - 1, l.cut[0].p[2]] {
-        cache.ensure(vol, k);
-    }
+    // After the cut's contour: ribbon, contour, ribbon, …, the last ribbon back to the cut.
+    let after = |k: usize| (l.cut_at + k) % n;
     let start = l.cut[0];
-    let has_piece_in = |g: &mut Graph, cache: &SliceCache, i: u32, r: &Node| -> bool {
-        let one = OneRibbon {
-            cache,
-            slice: r.level as i64,
-            ribbon: r.local,
-        };
-        let a = g.at(i);
-        (0..a.n).any(|k| one.allows(&a.piece(k)))
-    };
-    // The cut's contour node: the contour in the cut's plane between two ribbons that the cut's
-    // first vertex touches. Nodes alternate ribbon, contour; the cycle closes from its last
-    // node (a contour) to its first (a ribbon).
-    let si = top.index(start)?;
-    let at = (0..n).find(|&i| {
-        let c = &cycle[i];
-        c.kind == NodeKind::Contour
-            && c.level as i64 == start.p[2]
-            && start.axis != 2
-            && has_piece_in(top, cache, si, &cycle[(i + 1) % n])
-            && has_piece_in(top, cache, si, &cycle[(i + n - 1) % n])
-    })?;
-    // Ribbons in order after the cut's contour.
-    let ribbons: Vec<Node> = (1..n).step_by(2).map(|k| cycle[(at + k) % n]).collect();
-    if ribbons.iter().any(|r| r.kind != NodeKind::Ribbon) {
-        return None;
-    }
-    let on_cut: FastMap<u64, usize> = l
-        .cut
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v.key(), i))
-        .collect();
     let mut walk = vec![start];
     let mut cur = start;
-    for (i, r) in ribbons.iter().enumerate() {
+    for k in (1..n).step_by(2) {
+        let r = cycle[after(k)];
+        // The contour the path through this ribbon ends on, as vertex numbers.
+        let targets: FastMap<u32, ()> = if k + 1 < n {
+            let c = cycle[after(k + 1)];
+            let contour =
+                crate::sweep::walk_contour(top, l.contour_starts[after(k + 1)], c.level as i64)?;
+            contour
+                .iter()
+                .filter_map(|&v| top.index(v))
+                .map(|i| (i, ()))
+                .collect()
+        } else {
+            l.cut
+                .iter()
+                .filter(|&&v| v != start)
+                .filter_map(|&v| top.index(v))
+                .map(|i| (i, ()))
+                .collect()
+        };
         cache.trim();
         cache.ensure(vol, r.level as i64);
-        if let Some(nr) = ribbons.get(i + 1) {
-            cache.ensure(vol, nr.level as i64);
-        }
         let cache: &SliceCache = cache;
         let region = OneRibbon {
             cache,
             slice: r.level as i64,
             ribbon: r.local,
         };
-        let next = ribbons.get(i + 1);
-        let mut is_target = |g: &mut Graph, vi: u32| match next {
-            Some(nr) => has_piece_in(g, cache, vi, nr),
-            None => on_cut.contains_key(&g.vertex(vi).key()) && g.vertex(vi) != start,
-        };
-        let path = path_to(top, cur, &region, &mut is_target, RIBBON_PATH_BUDGET)?;
+        let mut is_target = |_: &mut Graph, vi: u32| targets.contains_key(&vi);
+        let path = path_to(top, cur, &region, &mut is_target, usize::MAX)?;
         walk.extend_from_slice(&path[1..]);
         cur = *path.last()?;
     }
     // Back along the cut, the shorter way, to the start (excluded: the walk is closed).
-    let (m, j) = (l.cut.len(), *on_cut.get(&cur.key())?);
+    let j = l.cut.iter().position(|&v| v == cur)?;
+    let m = l.cut.len();
     let step = if j <= m - j { m - 1 } else { 1 };
     let mut i = (j + step) % m;
     while i != 0 {
@@ -432,50 +383,48 @@ fn mini_cycle_region(
     set
 }
 
-/// The Reeb loop of a handle, in the swept volume's local coordinates. `top` is the surface
-/// graph of the swept volume and `cache` its slices' surfels (both shared between handles).
-pub fn reeb_loop(
+/// A loop crossing the handle's cut once, in the swept volume's local coordinates, found in the
+/// capped mini-volume of an intra-ribbon handle: around the cycle within the original slice,
+/// failing that anywhere in the slice. `None` for a handle of the swept volume itself.
+fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<Vec<Vertex>> {
+    let l = &h.located;
+    let CycleVolume::Mini(mini) = &l.volume else {
+        return None;
+    };
+    let allowed = l.allowed?;
+    let mut g = Graph::new(mini, cases(conn));
+    let mut found = None;
+    if !l.direct {
+        let region = mini_cycle_region(mini, h, allowed, conn);
+        found = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
+    }
+    let found = found.or_else(|| {
+        let region = InBox {
+            lo: allowed.0,
+            hi: allowed.1,
+            filter: |_: &PieceRef| true,
+        };
+        odd_loop(&mut g, &l.cut, &region, usize::MAX).found
+    })?;
+    let mapped: Vec<Vertex> = found
+        .into_iter()
+        .map(|v| map_vertex(v, &mini.frame, &vol.frame))
+        .collect();
+    Some(mapped)
+}
+
+/// A loop crossing `curve` once, for when none is shorter than the limit and any will do: for a
+/// top-level handle's cut, chained through its cycle's ribbons (cheap round a tall cycle); else
+/// the first the search from all of `curve` closes.
+fn some_odd_loop(
     top: &mut Graph,
     cache: &mut SliceCache,
     h: &Handle,
-    conn: Connectivity,
-    limit: usize,
-    exact_below: usize,
+    curve: &[Vertex],
 ) -> Option<Vec<Vertex>> {
-    let table = cases(conn);
-    let vol = top.vol;
-    let l = &h.located;
-    match &l.volume {
-        CycleVolume::Top => {
-            let region = CycleRegion::new(vol, cache, h);
-            short_odd_loop(top, &l.cut, &region, limit, exact_below)
-        }
-        CycleVolume::Mini(mini) => {
-            let allowed = l.allowed?;
-            let mut g = Graph::new(mini, table);
-            // Around the cycle within the original slice; failing that, anywhere in the slice.
-            let found = if l.direct {
-                None
-            } else {
-                let region = mini_cycle_region(mini, h, allowed, conn);
-                short_odd_loop(&mut g, &l.cut, &region, limit, exact_below)
-            };
-            let found = found.or_else(|| {
-                let region = InBox {
-                    lo: allowed.0,
-                    hi: allowed.1,
-                    filter: |_: &PieceRef| true,
-                };
-                short_odd_loop(&mut g, &l.cut, &region, limit, exact_below)
-            })?;
-            Some(
-                found
-                    .into_iter()
-                    .map(|v| map_vertex(v, &mini.frame, &vol.frame))
-                    .collect(),
-            )
-        }
-    }
+    let is_cut = matches!(h.located.volume, CycleVolume::Top) && curve == h.located.cut;
+    let chained = is_cut.then(|| chained_reeb_loop(top, cache, h)).flatten();
+    chained.or_else(|| any_odd_loop(top, curve, &Everywhere))
 }
 
 /// The cross loop: the shortest loop anywhere on the surface crossing `reeb` once.
@@ -483,47 +432,101 @@ pub fn cross_loop(top: &mut Graph, reeb: &[Vertex], limit: usize) -> Option<Vec<
     shortest_odd_loop(top, reeb, &Everywhere, limit)
 }
 
-/// For simplify, where only the handle's size matters: a first loop round the cycle, found
-/// cheaply, and a lower bound on the length of any (`usize::MAX` when the loop is the shortest).
+/// The two loops of a handle as vertex lists, before they are described.
+struct Found {
+    reeb: Option<Vec<Vertex>>,
+    cross: Option<Vec<Vertex>>,
+    exact: bool,
+    basis: Option<(Vec<Vertex>, Vec<Vertex>)>,
+}
+
+/// Finds both loops of a handle (see [`measure`]). Each handle has a closed curve `P` on the
+/// surface: a top-level handle its cut (a contour of its Reeb cycle), an intra-ribbon handle a
+/// loop round its cycle found in its capped mini-volume. Then `Q1` is the shortest loop crossing
+/// `P` once and `Q2` the shortest crossing `Q1` once, both searched over the whole surface. A
+/// top-level handle's Reeb loop is `Q1` and its cross loop `Q2` (paper §2.2); an intra-ribbon
+/// handle's cross loop is `Q1` and its Reeb loop `Q2` (no longer than `P`, which crosses `Q1`
+/// once), refined until each is the shortest loop crossing the other once.
 ///
-/// - A tall cycle's loops are long whatever they are (see [`reeb_lower_bound`]): chain one.
-/// - Otherwise a search of the cycle's ribbons no deeper than `limits.exact` either finds the
-///   loop (short: then it is exact) or shows that none is that short: then chain one.
-/// - Failing both, a first loop found by searching the whole cycle, which is at most half the cut
-///   longer than the shortest.
-fn first_reeb_loop(
+/// With a finite limit only loops shorter than it are looked for; when there is none, `Q1` is
+/// some loop crossing `P` once (any will do to look for `Q2`). Either way `(P, Q1)` cross once and
+/// no loop shorter than the handle's size (or the limit) crosses either of them an odd number of
+/// times: simplify's check that the whole surface has no loop that short left takes these pairs.
+fn find(
     top: &mut Graph,
     cache: &mut SliceCache,
     h: &Handle,
     conn: Connectivity,
     limits: Limits,
-) -> Option<(Vec<Vertex>, usize)> {
-    let tall = reeb_lower_bound(h);
-    if tall >= limits.exact {
-        if let Some(chained) = chained_reeb_loop(top, cache, h) {
-            return Some((chained, tall));
-        }
-    } else if matches!(h.located.volume, CycleVolume::Top) {
-        let vol = top.vol;
-        let region = CycleRegion::new(vol, cache, h);
-        match odd_loop_below(top, &h.located.cut, &region, limits.exact) {
-            // The shortest: nothing to refine, every cross loop up to the limit matters.
-            Some(Some(short)) => return Some((short, usize::MAX)),
-            Some(None) => {
-                if let Some(chained) = chained_reeb_loop(top, cache, h) {
-                    return Some((chained, limits.exact));
-                }
-            }
-            None => {}
+) -> Found {
+    let vol = top.vol;
+    let top_level = matches!(h.located.volume, CycleVolume::Top);
+    let Some(p) = (if top_level {
+        Some(h.located.cut.clone())
+    } else {
+        mini_volume_loop(h, conn, vol)
+    }) else {
+        return Found {
+            reeb: None,
+            cross: None,
+            exact: false,
+            basis: None,
+        };
+    };
+    let first = odd_loop(top, &p, &Everywhere, limits.cross);
+    let mut exact = first.exact;
+    let q1 = match first.found {
+        Some(q) => Some(q),
+        None => some_odd_loop(top, cache, h, &p),
+    };
+    let Some(q1) = q1 else {
+        return Found {
+            reeb: (!top_level).then_some(p),
+            cross: None,
+            exact: false,
+            basis: None,
+        };
+    };
+    // Q1 found beyond the limit is not the shortest: only what crosses it matters.
+    let second = odd_loop(top, &q1, &Everywhere, limits.cross);
+    exact &= second.exact;
+    let basis = Some((p.clone(), q1.clone()));
+    if top_level {
+        return Found {
+            reeb: Some(q1),
+            cross: second.found,
+            exact,
+            basis,
+        };
+    }
+    // Intra-ribbon: the Reeb loop is the shorter of P and Q2; refine the pair until each loop
+    // is the shortest crossing the other (lengths only fall, so this ends).
+    let (mut reeb, mut cross) = match second.found {
+        Some(q2) if q2.len() < p.len() => (q2, q1),
+        _ => (p, q1),
+    };
+    if limits.cross == usize::MAX && exact {
+        loop {
+            let better = odd_loop(top, &reeb, &Everywhere, cross.len());
+            exact &= better.exact;
+            let Some(c) = better.found else { break };
+            cross = c;
+            let better = odd_loop(top, &cross, &Everywhere, reeb.len());
+            exact &= better.exact;
+            let Some(r) = better.found else { break };
+            reeb = r;
         }
     }
-    reeb_loop(top, cache, h, conn, limits.reeb, 0).map(|f| {
-        let lower = f.len().saturating_sub(h.located.cut.len() / 2 + 1);
-        (f, lower)
-    })
+    let cross = (cross.len() < limits.cross).then_some(cross);
+    Found {
+        reeb: Some(reeb),
+        cross,
+        exact,
+        basis,
+    }
 }
 
-/// Measures both loops of a handle of the volume whose surface graph is `top`.
+/// Measures both loops of a handle of the volume whose surface graph is `top` (see [`find`]).
 pub fn measure(
     top: &mut Graph,
     cache: &mut SliceCache,
@@ -533,39 +536,14 @@ pub fn measure(
     limits: Limits,
 ) -> HandleLoops {
     let vol = top.vol;
-    let (mut reeb, mut cross) = (None, None);
-    if limits.size_only && limits.exact > 0 {
-        if let Some((first, lower)) = first_reeb_loop(top, cache, h, conn, limits) {
-            let c = cross_loop(top, &first, limits.cross.min(lower));
-            if c.is_some() || lower >= limits.exact {
-                // Either the cross loop is the smaller, or the first loop is already one the
-                // search below would return as it is (and its cross loop was looked for).
-                (reeb, cross) = (Some(first), c);
-            }
-        }
-    }
-    if reeb.is_none() {
-        reeb = reeb_loop(top, cache, h, conn, limits.reeb, limits.exact);
-        cross = reeb.as_ref().and_then(|r| cross_loop(top, r, limits.cross));
-    }
-    let describe = |lp: &[Vertex], partner: Option<&[Vertex]>| -> Loop {
-        let points: Vec<[f64; 3]> = lp
-            .iter()
-            .map(|v| vol.frame.to_original(v.midpoint()))
-            .collect();
-        Loop {
-            length: lp.len(),
-            length_mm: polyline_mm(&points, affine),
-            encloses: match partner {
-                Some(x) => encloses(vol, lp, x),
-                None => encloses_by_fan(vol, lp),
-            },
-            vertices: lp.to_vec(),
-            points,
-        }
-    };
-    let mut r = reeb.as_ref().map(|lp| describe(lp, cross.as_deref()));
-    let mut c = cross.as_ref().map(|lp| describe(lp, reeb.as_deref()));
+    let found = find(top, cache, h, conn, limits);
+    let (reeb, cross) = (found.reeb, found.cross);
+    let mut r = reeb
+        .as_ref()
+        .map(|lp| describe(vol, lp, cross.as_deref(), affine));
+    let mut c = cross
+        .as_ref()
+        .map(|lp| describe(vol, lp, reeb.as_deref(), affine));
     // Exactly one of the two encloses material (paper §2.2); where linking could not tell, the
     // other loop decides.
     if let (Some(a), Some(b)) = (&mut r, &mut c) {
@@ -581,7 +559,36 @@ pub fn measure(
             }
         }
     }
-    HandleLoops { reeb: r, cross: c }
+    HandleLoops {
+        reeb: r,
+        cross: c,
+        exact: found.exact,
+        basis: found.basis,
+    }
+}
+
+/// A loop of `vol` (vertices in its local coordinates) with its points, lengths and what it
+/// goes round (from its linking with `partner`, a loop crossing it once, or else its fan).
+pub fn describe(
+    vol: &MaskVolume,
+    lp: &[Vertex],
+    partner: Option<&[Vertex]>,
+    affine: &Affine,
+) -> Loop {
+    let points: Vec<[f64; 3]> = lp
+        .iter()
+        .map(|v| vol.frame.to_original(v.midpoint()))
+        .collect();
+    Loop {
+        length: lp.len(),
+        length_mm: polyline_mm(&points, affine),
+        encloses: match partner {
+            Some(x) => encloses(vol, lp, x),
+            None => encloses_by_fan(vol, lp),
+        },
+        vertices: lp.to_vec(),
+        points,
+    }
 }
 
 fn opposite(e: Encloses) -> Encloses {

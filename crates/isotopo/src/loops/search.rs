@@ -638,41 +638,53 @@ fn simple_cycle(g: &mut Graph, curves: &Curves, mut walk: Vec<Vertex>, goal: u32
     }
 }
 
-/// The shortest loop (as its vertices in order) through the region that crosses `cut` an odd
-/// number of times and is shorter than `limit` edges; `None` if there is none.
+/// The answer of a search for the shortest loop crossing a curve an odd number of times.
+#[derive(Clone, Debug, Default)]
+pub struct OddLoop {
+    /// The loop found, as its vertices in order: the shortest one shorter than the limit when
+    /// `exact`, else the best one the budgets allowed.
+    pub found: Option<Vec<Vertex>>,
+    /// Is the answer certain: `found` is a shortest such loop, or (`None`) no loop crossing the
+    /// curve an odd number of times is shorter than the limit?
+    pub exact: bool,
+}
+
+impl OddLoop {
+    /// Is it certain that no such loop is shorter than the limit?
+    pub fn none_below(&self) -> bool {
+        self.exact && self.found.is_none()
+    }
+}
+
+/// The shortest loop through the region that crosses `cut` an odd number of times, if one is
+/// shorter than `limit` edges (see [`odd_loop_with_parities`]).
+pub fn odd_loop(g: &mut Graph, cut: &[Vertex], region: &dyn Region, limit: usize) -> OddLoop {
+    odd_loop_with_parities(g, cut, &[], region, limit)
+}
+
+/// The shortest loop that crosses `cut` an odd number of times: [`odd_loop`] with no limit,
+/// `None` if there is none or the budgets ran out first.
 pub fn shortest_odd_loop(
     g: &mut Graph,
     cut: &[Vertex],
     region: &dyn Region,
     limit: usize,
 ) -> Option<Vec<Vertex>> {
-    shortest_loop_with_parities(g, cut, &[], region, limit, usize::MAX)
+    odd_loop(g, cut, region, limit).found
 }
 
-/// Like [`shortest_odd_loop`], but a loop known to be at least `exact_below` edges long is
-/// returned as soon as one is found, without the search for the shortest: enough to compare
-/// the loop with a threshold, and much faster around long Reeb cycles.
-pub fn short_odd_loop(
-    g: &mut Graph,
-    cut: &[Vertex],
-    region: &dyn Region,
-    limit: usize,
-    exact_below: usize,
-) -> Option<Vec<Vertex>> {
-    shortest_loop_with_parities(g, cut, &[], region, limit, exact_below)
-}
-
-/// Is there a loop through the region crossing `cut` an odd number of times, shorter than
-/// `limit` edges? `Some(Some(loop))`: yes, the shortest; `Some(None)`: no; `None`: the search
-/// ran out of budget before it could tell.
-pub fn odd_loop_below(
-    g: &mut Graph,
-    cut: &[Vertex],
-    region: &dyn Region,
-    limit: usize,
-) -> Option<Option<Vec<Vertex>>> {
-    let (found, decided) = odd_loop_search(g, cut, &[], region, limit, usize::MAX);
-    decided.then_some(found)
+/// A loop crossing `cut` an odd number of times, found cheaply (the first that the search from
+/// all of `cut` at once closes; at most half of `cut` longer than the shortest), or `None`.
+pub fn any_odd_loop(g: &mut Graph, cut: &[Vertex], region: &dyn Region) -> Option<Vec<Vertex>> {
+    if cut.len() < 2 {
+        return None;
+    }
+    let curves = Curves::new(g, cut, &[])?;
+    g.scratch.next_region();
+    let (first, _, _) = multi_source(g, &curves, cut, region, usize::MAX);
+    first
+        .map(|(walk, _)| simple_cycle(g, &curves, walk, 1))
+        .filter(|walk| walk_in_region(g, region, walk))
 }
 
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
@@ -681,59 +693,49 @@ pub fn odd_loop_below(
 /// A first breadth-first search from all of `cut` at once gives a loop (a path that crosses,
 /// closed along `cut`) and so an upper bound; then one search per vertex of `cut` that can carry
 /// a shorter loop (near a vertex whose two states the first search reached early), each half
-/// as deep as the best length so far, finds the shortest (within [`EXACT_BUDGET`]). The first
-/// loop is at most half of `cut` longer than the shortest (its path is no longer than the
-/// shortest loop, and closing it runs along `cut` the shorter way), so when even that leaves it
-/// at `exact_below` or more, it is returned as it is.
-pub fn shortest_loop_with_parities(
+/// as deep as the best length so far, finds the shortest. Every search is bounded by the limit
+/// and by a budget of states ([`FIRST_BUDGET`], [`EXACT_BUDGET`]); when a budget runs out first,
+/// the answer says it is not exact.
+pub fn odd_loop_with_parities(
     g: &mut Graph,
     cut: &[Vertex],
     even: &[&[Vertex]],
     region: &dyn Region,
     limit: usize,
-    exact_below: usize,
-) -> Option<Vec<Vertex>> {
-    odd_loop_search(g, cut, even, region, limit, exact_below).0
-}
-
-/// [`shortest_loop_with_parities`], and whether its answer is decided: the first phase found a
-/// loop, or saw every state closer than `limit` (so that no loop means none is that short).
-fn odd_loop_search(
-    g: &mut Graph,
-    cut: &[Vertex],
-    even: &[&[Vertex]],
-    region: &dyn Region,
-    limit: usize,
-    exact_below: usize,
-) -> (Option<Vec<Vertex>>, bool) {
+) -> OddLoop {
     if cut.len() < 2 {
-        return (None, true);
+        return OddLoop {
+            found: None,
+            exact: true,
+        };
     }
     let Some(curves) = Curves::new(g, cut, even) else {
-        return (None, false);
+        return OddLoop::default();
     };
     g.scratch.next_region();
     let goal: u32 = 1;
     let mut best: Option<Vec<Vertex>> = None;
     let mut best_len = limit;
     let mut sources: Vec<Vertex> = cut.to_vec();
-    let mut decided = false;
     // Phase 1 (one curve only: closing along it must not change other parities).
     if even.is_empty() {
         let (first, conclusive, meets) = multi_source(g, &curves, cut, region, limit);
         if first.is_none() && conclusive {
             // Every state closer than `limit` was seen: no odd loop is that short.
-            return (None, true);
+            return OddLoop {
+                found: None,
+                exact: true,
+            };
         }
-        decided = first.is_some();
+        // Closed along `cut`, the walk may leave the region where the cut does: then it is no
+        // answer, and every vertex of the cut is searched from.
+        let first = first
+            .map(|(walk, start)| (simple_cycle(g, &curves, walk, goal), start))
+            .filter(|(walk, _)| walk_in_region(g, region, walk));
         if let Some((walk, start)) = first {
-            let walk = simple_cycle(g, &curves, walk, goal);
             if walk.len() < best_len {
                 best_len = walk.len();
                 best = Some(walk);
-            }
-            if best_len.saturating_sub(cut.len() / 2 + 1) >= exact_below {
-                return (best, decided);
             }
             // Search from the loop's own start first: it finds a loop no longer than the bound.
             if let Some(p) = sources.iter().position(|&v| v == start) {
@@ -746,11 +748,9 @@ fn odd_loop_search(
         }
     }
     let mut budget = EXACT_BUDGET;
+    let mut exact = true;
     let mut tried: FastMap<u64, ()> = FastMap::default();
     for &s in &sources {
-        if budget == 0 {
-            break;
-        }
         if tried.insert(key(s), ()).is_some() {
             continue;
         }
@@ -759,9 +759,13 @@ fn odd_loop_search(
             continue;
         }
         // Most sources have no loop shorter than the best so far: a search half as deep tells.
-        let Some((len, meeting)) =
-            odd_length_through(g, &curves, region, si, goal, best_len, &mut budget)
-        else {
+        let found = odd_length_through(g, &curves, region, si, goal, best_len, &mut budget);
+        if budget == 0 {
+            // This source's search (or a later one) was cut short.
+            exact = false;
+            break;
+        }
+        let Some((len, meeting)) = found else {
             continue;
         };
         // The loop itself as the full-depth search finds it (among equally short loops through
@@ -772,7 +776,7 @@ fn odd_loop_search(
         best_len = path.len();
         best = Some(path);
     }
-    (best, decided)
+    OddLoop { found: best, exact }
 }
 
 /// Starts a breadth-first search of the double cover at state (si, 0): a fresh generation of
@@ -1136,6 +1140,39 @@ pub fn odd_simple_loop(g: &mut Graph, cut: &[Vertex], walk: Vec<Vertex>) -> Opti
         parity ^= curves.edge_flip(g, v, w);
     }
     (parity == 1).then(|| simple_cycle(g, &curves, walk, 1))
+}
+
+/// Is every edge of the closed walk usable in the region?
+fn walk_in_region(g: &mut Graph, region: &dyn Region, walk: &[Vertex]) -> bool {
+    let n = walk.len();
+    (0..n).all(|k| {
+        g.around(walk[k]).is_some_and(|a| {
+            a.position(walk[(k + 1) % n])
+                .is_some_and(|j| usable(region, &a, j))
+        })
+    })
+}
+
+/// Is `lp` a closed walk on the surface: every vertex a crossing point, each next to the one
+/// before it (and the last to the first)?
+pub fn is_closed_walk(g: &mut Graph, lp: &[Vertex]) -> bool {
+    let n = lp.len();
+    n >= 3
+        && (0..n).all(|k| {
+            g.around(lp[k])
+                .is_some_and(|a| a.position(lp[(k + 1) % n]).is_some())
+        })
+}
+
+/// Parity of the number of times the closed walk `a` crosses the closed curve `b` (both on the
+/// surface; `None` if either is not).
+pub fn crossing_parity(g: &mut Graph, a: &[Vertex], b: &[Vertex]) -> Option<u32> {
+    if !is_closed_walk(g, a) || !is_closed_walk(g, b) {
+        return None;
+    }
+    let curves = Curves::new(g, b, &[])?;
+    let n = a.len();
+    Some((0..n).fold(0, |p, k| p ^ curves.edge_flip(g, a[k], a[(k + 1) % n])))
 }
 
 /// Is the loop non-separating on the surface (within the region)? It is exactly when, starting

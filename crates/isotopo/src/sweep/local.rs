@@ -6,7 +6,7 @@
 //! its slices (small handles whose loops run through the caps, or the tunnel inside one cube).
 //! Such a ribbon of the mini-volume is small, so the direct search is cheap.
 
-use crate::loops::search::{key, shortest_loop_with_parities, FastMap, Graph, Region};
+use crate::loops::search::{key, odd_loop_with_parities, FastMap, Graph, Region};
 use crate::surface::{Around, PieceRef, Vertex};
 use crate::unionfind::UnionFind;
 use std::collections::VecDeque;
@@ -28,9 +28,7 @@ pub fn handles(
             break;
         }
         let earlier: Vec<&[Vertex]> = out.iter().map(|(a, _)| a.as_slice()).collect();
-        if let Some(beta) =
-            shortest_loop_with_parities(g, &cycle, &earlier, region, usize::MAX, usize::MAX)
-        {
+        if let Some(beta) = odd_loop_with_parities(g, &cycle, &earlier, region, usize::MAX).found {
             out.push((cycle, beta));
         }
     }
@@ -48,7 +46,11 @@ fn usable(region: &dyn Region, a: &Around, k: usize) -> bool {
 /// tree–cotree decomposition: a breadth-first spanning forest T of the vertices, a spanning
 /// forest C of the faces (pieces, and one cap per boundary curve) across edges not in T; each
 /// edge in neither closes one generator with its path in T. Shortest first.
-fn generators(g: &mut Graph, vertices: &[Vertex], region: &dyn Region) -> Option<Vec<Vec<Vertex>>> {
+pub(crate) fn generators(
+    g: &mut Graph,
+    vertices: &[Vertex],
+    region: &dyn Region,
+) -> Option<Vec<Vec<Vertex>>> {
     let mut tree: FastMap<u64, (u32, u64)> = FastMap::default(); // key -> (depth, parent key)
     let mut vert: FastMap<u64, Vertex> = FastMap::default();
     // Every usable edge once: (v, w, left face, right face).

@@ -66,6 +66,11 @@ pub struct LocatedHandle {
     /// The cycle (alternating ribbon and contour nodes) in the coordinates of `volume`; for a
     /// handle found directly, the one ribbon of the mini-volume that holds it.
     pub cycle: Vec<Node>,
+    /// Per node of `cycle`: for a contour, one of its vertices (in its plane; the contour is the
+    /// walk along the plane from there); unused for a ribbon.
+    pub contour_starts: Vec<Vertex>,
+    /// Position in `cycle` of the contour cut for this handle (Reeb-cycle handles).
+    pub cut_at: usize,
     pub volume: CycleVolume,
     /// The closed curve its Reeb loop crosses once (vertices in order, in `volume`'s
     /// coordinates).
@@ -75,6 +80,11 @@ pub struct LocatedHandle {
     pub allowed: Option<([i64; 3], [i64; 3])>,
     /// A node of the top-level Reeb graph on the handle's surface.
     pub(crate) top_node: u32,
+    /// The contour node of the sweep's Reeb graph cut for this handle (Reeb-cycle handles).
+    pub(crate) cut_node: Option<u32>,
+    /// For intra-ribbon handles: the slice and index (in that slice's surfels) of the ribbon of
+    /// the swept volume that holds the handle.
+    pub ribbon: Option<(i64, u32)>,
     /// Cube bounds of the cycle's ribbons, original coordinates (lower corners, inclusive).
     pub bbox: BBox,
 }
@@ -231,6 +241,14 @@ pub struct Sweeper {
     least_corner: Option<Box<[u8; 256]>>,
     /// The surfels of the slice processed last, for a caller that keeps slices.
     last_surfels: Option<(i64, SliceSurfels)>,
+    /// Per node: is it the contour cut for a handle found so far? Cycles are found avoiding
+    /// these, and cut at a contour of their own. The graph less its cuts stays connected (a
+    /// cut lies on a cycle of it, and a contour node has one edge up and one down), so every
+    /// new cycle has such a path; the cuts are then independent, and a loop chained along
+    /// handle j's cycle crosses no cut of an earlier handle: the crossings of cuts and such
+    /// loops form a triangular matrix with ones on its diagonal, so together they span the
+    /// homology of the Reeb graph's part of the surface (what simplify's certificate needs).
+    is_cut: Vec<bool>,
 }
 
 impl Sweeper {
@@ -258,6 +276,7 @@ impl Sweeper {
             uf: UnionFind::default(),
             least_corner: None,
             last_surfels: None,
+            is_cut: Vec::new(),
         }
     }
 
@@ -272,6 +291,7 @@ impl Sweeper {
     pub fn release_handles(&mut self) {
         for (_, h) in &mut self.handles {
             h.cycle = Vec::new();
+            h.contour_starts = Vec::new();
             h.cut = Vec::new();
             h.volume = CycleVolume::Top;
         }
@@ -284,6 +304,7 @@ impl Sweeper {
 
     fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
         let id = self.graph.add_node(kind, level, local);
+        self.is_cut.push(false);
         self.ribbon_boxes.push(BBox::EMPTY);
         self.contour_at.push((Vertex { p: [0; 3], axis: 0 }, 0));
         id
@@ -375,12 +396,14 @@ impl Sweeper {
             let rn = ribbon_node[r];
             for &c in bottom {
                 if self.graph.connected(c, rn) {
+                    // The cycle avoids the contours cut for earlier handles and is cut at one of
+                    // its own (see `is_cut`).
                     let path = self
                         .graph
-                        .shortest_path(rn, c)
+                        .shortest_path(rn, c, &self.is_cut)
                         .ok_or_else(|| Error::Internal("connected nodes without a path".into()))?;
                     let mut bbox = BBox::EMPTY;
-                    let mut shortest: Option<(Vertex, u32, i32)> = None;
+                    let mut shortest: Option<(Vertex, u32, i32, u32)> = None;
                     for &n in &path {
                         let node = self.graph.nodes[n as usize];
                         match node.kind {
@@ -388,16 +411,22 @@ impl Sweeper {
                             NodeKind::Contour => {
                                 let (v, len) = self.contour_at[n as usize];
                                 if shortest.is_none_or(|x| len < x.1) {
-                                    shortest = Some((v, len, node.level));
+                                    shortest = Some((v, len, node.level, n));
                                 }
                             }
                         }
                     }
-                    let (v, _, level) = shortest
+                    let (v, _, level, cut_node) = shortest
                         .ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
+                    self.is_cut[cut_node as usize] = true;
                     let cut = walk_contour(&mut surface, v, level as i64)
                         .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
                     let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
+                    let contour_starts = path
+                        .iter()
+                        .map(|&n| self.contour_at[n as usize].0)
+                        .collect();
+                    let cut_at = path.iter().position(|&n| n == cut_node).unwrap_or(0);
                     self.handles.push((
                         s,
                         LocatedHandle {
@@ -408,6 +437,10 @@ impl Sweeper {
                             cut,
                             allowed: None,
                             top_node: rn,
+                            cut_node: Some(cut_node),
+                            ribbon: None,
+                            contour_starts,
+                            cut_at,
                             bbox,
                         },
                     ));
@@ -458,6 +491,7 @@ impl Sweeper {
             if self.depth == 0 {
                 for mut h in intra_ribbon(vol, &cur, r, s, conn, g)? {
                     h.top_node = ribbon_node[r];
+                    h.ribbon = Some((s, r as u32));
                     self.handles.push((s, h));
                 }
             } else {
@@ -496,6 +530,12 @@ impl Sweeper {
         } else {
             cp.nodes
         };
+        for (_, h) in &self.handles[cp.handles..] {
+            if let Some(n) = h.cut_node.filter(|&n| (n as usize) < self.is_cut.len()) {
+                self.is_cut[n as usize] = false;
+            }
+        }
+        self.is_cut.truncate(cp.nodes);
         self.graph.truncate_from(cp.nodes, keep_from);
         self.graph.uf.rollback(cp.uf);
         self.ribbon_boxes.truncate(cp.nodes);
@@ -671,6 +711,10 @@ fn intra_ribbon(
                 cut: l2,
                 allowed: Some(allowed),
                 top_node: 0,
+                cut_node: None,
+                ribbon: None,
+                contour_starts: Vec::new(),
+                cut_at: 0,
                 bbox: clip(&bbox, &shared, allowed),
             });
         }

@@ -114,8 +114,9 @@ impl ReebGraph {
         self.uf.find(a) == self.uf.find(b)
     }
 
-    /// Shortest path from `from` to `to` (both included), by breadth-first search.
-    pub fn shortest_path(&mut self, from: u32, to: u32) -> Option<Vec<u32>> {
+    /// Shortest path from `from` to `to` (breadth-first, both included) through nodes that are
+    /// not `blocked` (a node beyond the end of `blocked` is not).
+    pub fn shortest_path(&mut self, from: u32, to: u32, blocked: &[bool]) -> Option<Vec<u32>> {
         let n = self.nodes.len();
         if self.stamp.len() < n {
             self.stamp.resize(n, 0);
@@ -144,7 +145,8 @@ impl ReebGraph {
             }
             for k in 0..self.adj[x as usize].len() {
                 let y = self.adj[x as usize][k];
-                if self.stamp[y as usize] != g {
+                if self.stamp[y as usize] != g && !blocked.get(y as usize).copied().unwrap_or(false)
+                {
                     self.stamp[y as usize] = g;
                     self.pred[y as usize] = x;
                     queue.push_back(y);
@@ -154,8 +156,6 @@ impl ReebGraph {
         None
     }
 
-    /// Removes every node from `first` on, with their edges (the union-find must be rolled back
-    /// separately to the matching checkpoint).
     pub fn truncate(&mut self, first: usize) {
         self.truncate_from(first, 0);
     }
@@ -203,7 +203,10 @@ mod tests {
         for (a, b) in [(0, 1), (1, 2), (2, 3), (0, 4), (4, 3)] {
             g.add_edge(a, b);
         }
-        assert_eq!(g.shortest_path(0, 3), Some(vec![0, 4, 3]));
-        assert_eq!(g.shortest_path(0, 5), None);
+        assert_eq!(g.shortest_path(0, 3, &[]), Some(vec![0, 4, 3]));
+        assert_eq!(g.shortest_path(0, 5, &[]), None);
+        // With 4 blocked, the long way.
+        let blocked = [false, false, false, false, true];
+        assert_eq!(g.shortest_path(0, 3, &blocked), Some(vec![0, 1, 2, 3]));
     }
 }
