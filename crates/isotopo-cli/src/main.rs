@@ -47,8 +47,12 @@ struct SimplifyArgs {
     window: WindowArgs,
     /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
     /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
-    #[arg(long)]
-    tau: f64,
+    #[arg(long, required_unless_present = "tau_mm", conflicts_with = "tau_mm")]
+    tau: Option<f64>,
+    /// Like --tau, in millimetres along the interpolated surface (the file's spacing): for
+    /// anisotropic scans, where an edge along one axis is longer than along another.
+    #[arg(long, value_name = "MM")]
+    tau_mm: Option<f64>,
     /// Output volume (same format, type, header and geometry as the input unless the extension
     /// says otherwise).
     #[arg(long, short)]
@@ -89,10 +93,17 @@ struct AnalyzeArgs {
     /// Sweep direction.
     #[arg(long, value_enum, default_value = "z")]
     axis: AxisArg,
-    /// Stop cross-loop searches at this length (voxel edges): longer loops cannot matter when
+    /// Stop the searches at this length (voxel edges): longer loops cannot matter when
     /// simplifying with this threshold. Default: no limit.
     #[arg(long)]
     tau: Option<f64>,
+    /// Stop the searches in millimetres at this length. Default: no limit.
+    #[arg(long, value_name = "MM")]
+    tau_mm: Option<f64>,
+    /// Which shortest loops to measure: in voxel edges (the paper's), in millimetres along the
+    /// interpolated surface, or both (the default).
+    #[arg(long, value_enum, default_value = "both")]
+    metric: MetricArg,
     /// Print one JSON object (handles with their loops) instead of text.
     #[arg(long, conflicts_with = "csv")]
     json: bool,
@@ -110,6 +121,13 @@ struct AnalyzeArgs {
     all: bool,
     #[arg(long, short)]
     quiet: bool,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq)]
+enum MetricArg {
+    Edges,
+    Mm,
+    Both,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
@@ -689,9 +707,14 @@ fn sweep(
     opts: &SurfaceOptions,
     axis: Axis,
     window: &WindowArgs,
+    with_fractions: bool,
     bars: &progress::Bars,
 ) -> Result<(MaskVolume, HandleReport)> {
-    let mut masks = MaskVolume::from_reader(reader, opts, axis, window.max_slices, bars)?;
+    let mut masks = if with_fractions {
+        MaskVolume::from_reader_with_fractions(reader, opts, axis, window.max_slices, bars)?
+    } else {
+        MaskVolume::from_reader(reader, opts, axis, window.max_slices, bars)?
+    };
     let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, bars)?;
     Ok((masks, report))
 }
@@ -703,7 +726,7 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
     let info = reader.info().clone();
     let bars = progress::Bars::new(a.quiet || a.json);
     let t = Instant::now();
-    let (_, report) = sweep(reader.as_mut(), &opts, axis, &a.window, &bars)?;
+    let (_, report) = sweep(reader.as_mut(), &opts, axis, &a.window, false, &bars)?;
     let secs = t.elapsed().as_secs_f64();
     let handles = isotopo::report::handles_json(&report, &info);
     if a.json {
@@ -795,30 +818,44 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     if let Some(p) = &a.loops {
         volume::check_output_path(p, &info)?;
     }
-    let tau = match a.tau {
+    let positive = |t: Option<f64>, flag: &str| match t {
         Some(t) if t.is_nan() || t <= 0.0 => {
-            return Err(Error::usage("--tau must be positive (or inf)"))
+            Err(Error::usage(format!("{flag} must be positive (or inf)")))
         }
-        t => t,
+        t => Ok(t),
     };
+    let tau = positive(a.tau, "--tau")?;
+    let tau_mm = positive(a.tau_mm, "--tau-mm")?;
     let limits = isotopo::loops::Limits {
-        cross: tau
-            .filter(|t| t.is_finite())
-            .map(|t| t.ceil() as usize)
-            .unwrap_or(usize::MAX),
+        below: tau.unwrap_or(f64::INFINITY),
+        ..isotopo::loops::Limits::NONE
+    };
+    let limits_mm = isotopo::loops::Limits {
+        below: tau_mm.unwrap_or(f64::INFINITY),
+        metric: isotopo::loops::Metric::Millimetres,
+        size_only: false,
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
-    let (mut masks, report) = sweep(reader.as_mut(), &opts, axis, &a.window, &bars)?;
+    let mm = a.metric != MetricArg::Edges;
+    let (mut masks, report) = sweep(reader.as_mut(), &opts, axis, &a.window, mm, &bars)?;
     let t_sweep = t.elapsed().as_secs_f64();
-    let loops = isotopo::loops::measure_all(
-        &mut masks,
-        &report.handles,
-        opts.connectivity,
-        &info.affine,
-        limits,
-        &bars,
-    )?;
+    let mut measure = |limits| {
+        isotopo::loops::measure_all(
+            &mut masks,
+            &report.handles,
+            opts.connectivity,
+            &info.affine,
+            limits,
+            &bars,
+        )
+    };
+    let loops_mm = if mm { Some(measure(limits_mm)?) } else { None };
+    let loops = if a.metric != MetricArg::Mm {
+        measure(limits)?
+    } else {
+        loops_mm.clone().unwrap_or_default()
+    };
     let secs = t.elapsed().as_secs_f64();
     if let Some(p) = &a.loops {
         isotopo::report::write_loops(p, &loops, &info.affine)?;
@@ -853,7 +890,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
             "axis": axis.name(),
             "tau": tau.filter(|t| t.is_finite()),
             "genus": report.genus,
-            "handles": isotopo::report::analysis_json(&report, &info, &loops),
+            "handles": isotopo::report::analysis_json(&report, &info, &loops, loops_mm.as_deref()),
             "surfaces": report.surfaces,
             "seconds": secs,
             "seconds_sweep": t_sweep,
@@ -862,7 +899,10 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         return Ok(());
     }
     if a.csv {
-        print!("{}", isotopo::report::analysis_csv(&report, &info, &loops));
+        print!(
+            "{}",
+            isotopo::report::analysis_csv(&report, &info, &loops, loops_mm.as_deref())
+        );
         return Ok(());
     }
     let reeb = report
@@ -939,7 +979,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     if beyond > 0 {
         println!(
             "  {:>8} {:<40} {}",
-            format!(">={}", limits.cross),
+            format!(">={}", num(limits.below)),
             "#".repeat((beyond * 40).div_ceil(maxc)),
             beyond
         );
@@ -969,7 +1009,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
                 "void"
             }
         ),
-        None => format!(">={}", limits.cross),
+        None => format!(">={}", num(limits.below)),
     };
     for &i in order.iter().take(shown) {
         let h = &report.handles[i];
@@ -1021,8 +1061,13 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     use isotopo::simplify::{Mode, SimplifyOptions, WallValues};
     let opts = a.surface.options()?;
     let axis = a.axis.axis();
-    if a.tau.is_nan() || a.tau <= 0.0 {
-        return Err(Error::usage("--tau must be positive (or inf)"));
+    let (tau, metric, flag) = match (a.tau, a.tau_mm) {
+        (Some(t), _) => (t, isotopo::loops::Metric::Edges, "--tau"),
+        (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
+        (None, None) => return Err(Error::usage("give --tau or --tau-mm")),
+    };
+    if tau.is_nan() || tau <= 0.0 {
+        return Err(Error::usage(format!("{flag} must be positive (or inf)")));
     }
     if let Some(r) = a.max_ratio {
         if r.is_nan() || r < 1.0 {
@@ -1051,7 +1096,8 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
         )));
     }
     let sopts = SimplifyOptions {
-        tau: a.tau,
+        tau,
+        metric,
         mode: if a.fill_only {
             Mode::FillOnly
         } else if a.cut_only {
@@ -1065,13 +1111,14 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     let values = WallValues::new(info.dtype, &opts.classifier(&info));
     let bars = progress::Bars::new(a.quiet || a.json);
     let t0 = Instant::now();
-    let mut masks = isotopo::sweep::MaskVolume::from_reader(
-        reader.as_mut(),
-        &opts,
-        axis,
-        a.window.max_slices,
-        &bars,
-    )?;
+    // Lengths in millimetres follow the interpolated surface: keep the fractions along the
+    // crossing edges (one byte each) when tau is in millimetres.
+    let read = if metric == isotopo::loops::Metric::Millimetres {
+        MaskVolume::from_reader_with_fractions
+    } else {
+        MaskVolume::from_reader
+    };
+    let mut masks = read(reader.as_mut(), &opts, axis, a.window.max_slices, &bars)?;
     let t_read = t0.elapsed().as_secs_f64();
     let before = masks.genus(opts.connectivity)?;
     let t = Instant::now();
@@ -1104,8 +1151,8 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     }
     let secs = t0.elapsed().as_secs_f64();
     let mut v = isotopo::report::simplify_json(&outcome, &before, &after, &info);
-    let tau_json = if a.tau.is_finite() {
-        serde_json::json!(a.tau)
+    let tau_json = if tau.is_finite() {
+        serde_json::json!(tau)
     } else {
         serde_json::json!("inf")
     };
@@ -1120,6 +1167,7 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
         "connectivity": opts.connectivity.number(),
         "axis": axis.name(),
         "tau": tau_json,
+        "metric": metric,
         "mode": sopts.mode,
         "max_ratio": a.max_ratio,
         "wall_values": values,
@@ -1153,8 +1201,8 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
         inside_name(opts.inside),
         opts.connectivity.number(),
         axis.name(),
-        if a.tau.is_finite() {
-            num(a.tau)
+        if tau.is_finite() {
+            num(tau)
         } else {
             "inf".into()
         },
@@ -1211,11 +1259,11 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     match outcome.certified {
         Some(true) => println!(
             "checked     no loop shorter than tau {} is left (every loop of the result crosses a checked curve)",
-            num(a.tau)
+            num(tau)
         ),
         Some(false) => println!(
             "checked     NOT proven that no loop shorter than tau {} is left (see the kept handles)",
-            num(a.tau)
+            num(tau)
         ),
         None => {}
     }

@@ -24,6 +24,7 @@
 
 pub mod closure;
 pub mod error;
+pub mod geometry;
 pub mod loops;
 pub mod mesh;
 pub mod plots;

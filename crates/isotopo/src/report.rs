@@ -20,15 +20,21 @@ pub fn loop_json(l: &Loop) -> Value {
 }
 
 /// Handles as JSON, with their loops when measured: each handle adds `reeb_loop`, `cross_loop`
-/// (null when longer than the search limit) and `size` (the shorter length; null when both
-/// were beyond the limit).
+/// (shortest in voxel edges; null when longer than the search limit), `size` (the shorter
+/// length; null when both were beyond the limit), `exact` (every search ended within its
+/// budget), `cut` (a Reeb-cycle handle's cut: its Reeb loop is the shortest loop crossing it
+/// once) and, when measured in millimetres too (`loops_mm`), `reeb_loop_mm` and
+/// `cross_loop_mm` (shortest in mm) with `size_mm` their shorter length (else `size_mm` is the
+/// length in mm of the shorter loop in edges).
 pub fn analysis_json(
     report: &HandleReport,
     info: &VolumeInfo,
     loops: &[HandleLoops],
+    loops_mm: Option<&[HandleLoops]>,
 ) -> Vec<Value> {
+    let round = |x: f64| Value::from((x * 1000.0).round() / 1000.0);
     let mut v = handles_json(report, info);
-    for (h, l) in v.iter_mut().zip(loops) {
+    for (i, (h, l)) in v.iter_mut().zip(loops).enumerate() {
         // Where the handle is: the box of its loops (the cycle's ribbons can span a whole slice).
         if let Some(b) = l.bbox() {
             h["cycle_bbox"] = h["bbox"].clone();
@@ -40,16 +46,34 @@ pub fn analysis_json(
         h["size"] = l.size().map(Value::from).unwrap_or(Value::Null);
         h["size_mm"] = l
             .smallest()
-            .map(|s| Value::from((s.length_mm * 1000.0).round() / 1000.0))
+            .map(|s| round(s.length_mm))
             .unwrap_or(Value::Null);
+        h["exact"] = l.exact.into();
+        if let Some(c) = &l.cut_points {
+            h["cut"] = json!(c);
+        }
+        if let Some(m) = loops_mm.and_then(|m| m.get(i)) {
+            h["reeb_loop_mm"] = m.reeb.as_ref().map(loop_json).unwrap_or(Value::Null);
+            h["cross_loop_mm"] = m.cross.as_ref().map(loop_json).unwrap_or(Value::Null);
+            h["size_mm"] = m
+                .size_in(crate::loops::Metric::Millimetres)
+                .map(round)
+                .unwrap_or(Value::Null);
+            h["exact"] = (l.exact && m.exact).into();
+        }
     }
     v
 }
 
 /// The same as CSV: one row per handle.
-pub fn analysis_csv(report: &HandleReport, info: &VolumeInfo, loops: &[HandleLoops]) -> String {
-    let rows = analysis_json(report, info, loops);
-    let mut s = String::from("id,surface,kind,slice_min,slice_max,x_min,x_max,y_min,y_max,z_min,z_max,reeb_length,reeb_length_mm,reeb_encloses,cross_length,cross_length_mm,cross_encloses,size,size_mm\n");
+pub fn analysis_csv(
+    report: &HandleReport,
+    info: &VolumeInfo,
+    loops: &[HandleLoops],
+    loops_mm: Option<&[HandleLoops]>,
+) -> String {
+    let rows = analysis_json(report, info, loops, loops_mm);
+    let mut s = String::from("id,surface,kind,slice_min,slice_max,x_min,x_max,y_min,y_max,z_min,z_max,reeb_length,reeb_length_mm,reeb_encloses,cross_length,cross_length_mm,cross_encloses,size,size_mm,reeb_mm_length_mm,cross_mm_length_mm,exact\n");
     let f = |v: &Value| match v {
         Value::Null => String::new(),
         Value::String(x) => x.clone(),
@@ -58,19 +82,18 @@ pub fn analysis_csv(report: &HandleReport, info: &VolumeInfo, loops: &[HandleLoo
     for r in rows {
         let b = &r["bbox"];
         let lp = |name: &str, field: &str| f(&r[name][field]);
-        s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            r["id"],
-            r["surface"],
+        let cells = [
+            r["id"].to_string(),
+            r["surface"].to_string(),
             f(&r["kind"]),
-            r["slices"][0],
-            r["slices"][1],
-            b["min"][0],
-            b["max"][0],
-            b["min"][1],
-            b["max"][1],
-            b["min"][2],
-            b["max"][2],
+            r["slices"][0].to_string(),
+            r["slices"][1].to_string(),
+            b["min"][0].to_string(),
+            b["max"][0].to_string(),
+            b["min"][1].to_string(),
+            b["max"][1].to_string(),
+            b["min"][2].to_string(),
+            b["max"][2].to_string(),
             lp("reeb_loop", "length"),
             lp("reeb_loop", "length_mm"),
             lp("reeb_loop", "encloses"),
@@ -78,8 +101,13 @@ pub fn analysis_csv(report: &HandleReport, info: &VolumeInfo, loops: &[HandleLoo
             lp("cross_loop", "length_mm"),
             lp("cross_loop", "encloses"),
             f(&r["size"]),
-            f(&r["size_mm"])
-        ));
+            f(&r["size_mm"]),
+            lp("reeb_loop_mm", "length_mm"),
+            lp("cross_loop_mm", "length_mm"),
+            f(&r["exact"]),
+        ];
+        s.push_str(&cells.join(","));
+        s.push('\n');
     }
     s
 }

@@ -21,8 +21,9 @@
 
 use crate::closure::{self, base_thickness, Operation};
 use crate::error::{Error, Result};
-use crate::loops::search::{self, FastMap, Graph, GraphCache};
-use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, SliceCache};
+use crate::geometry::Geometry;
+use crate::loops::search::{FastMap, Graph, GraphCache};
+use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, Metric, SliceCache};
 use crate::progress::Progress;
 use crate::surface::Vertex;
 use crate::sweep::{Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
@@ -63,22 +64,21 @@ pub struct SimplifyOptions {
     /// Keep handles whose longer loop is more than this many times the shorter.
     pub max_ratio: Option<f64>,
     pub conn: Connectivity,
+    /// What `tau` is measured in: voxel edges (the paper's unit, the default) or millimetres
+    /// along the interpolated surface (`--tau-mm`; the volume must have been read with its
+    /// fractions, else vertices sit at their edges' midpoints).
+    pub metric: Metric,
 }
 
 impl SimplifyOptions {
     /// The searches' limits: longer loops cannot change a decision.
     pub fn limits(&self) -> Limits {
-        let cross = if self.tau.is_finite() {
-            (self.tau * self.max_ratio.unwrap_or(1.0).max(1.0)).ceil()
-        } else {
-            f64::INFINITY
-        };
-        let cross = if cross < usize::MAX as f64 {
-            cross as usize
-        } else {
-            usize::MAX
-        };
-        Limits { cross }
+        Limits {
+            below: self.tau * self.max_ratio.unwrap_or(1.0).max(1.0),
+            metric: self.metric,
+            // The ratio of the loops needs both measured.
+            size_only: self.max_ratio.is_none(),
+        }
     }
 }
 
@@ -93,8 +93,9 @@ pub enum LoopKind {
 /// A handle that was removed.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Removed {
-    /// The handle's size: its shorter loop (voxel edges).
+    /// The handle's size: its shorter loop (voxel edges, and millimetres).
     pub size: usize,
+    pub size_mm: f64,
     pub reeb: Option<usize>,
     pub cross: Option<usize>,
     pub kind: HandleKind,
@@ -108,8 +109,9 @@ pub struct Removed {
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
     /// minimum-cut wall, the margin of the box it was cut in).
     pub thickness: f64,
-    /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`
-    /// or `min_cut` (the fewest samples separating the fan's two faces).
+    /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`,
+    /// `min_cut` (the fewest samples separating the fan's two faces) or `peeled` (the samples near
+    /// the fan thinned by simple samples and cut at one).
     pub wall: &'static str,
     /// Samples this closure flipped.
     pub samples_changed: usize,
@@ -147,7 +149,9 @@ pub enum KeepReason {
 /// A handle left in the result.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Kept {
+    /// The shorter loop's length in edges, and in millimetres.
     pub size: Option<usize>,
+    pub size_mm: Option<f64>,
     pub reeb: Option<usize>,
     pub cross: Option<usize>,
     pub kind: HandleKind,
@@ -212,6 +216,10 @@ struct Caches {
     /// measured again. (A stale entry can only delay a closure to the next pass: the last pass
     /// closes nothing, so its measurements are all fresh.)
     memo: FastMap<u64, HandleLoops>,
+    /// Handles of this pass (by [`memo_key`]) whose every wall was refused: after a rewind
+    /// they are kept again without trying, unless a wall landed near their loops since
+    /// (which forgets their measurement too).
+    failed: FastMap<u64, ()>,
 }
 
 /// Identity of a located handle across rewinds: its cut and where its cycle lies.
@@ -289,6 +297,8 @@ impl Caches {
                 })
             })
         });
+        let memo = &self.memo;
+        self.failed.retain(|k, _| memo.contains_key(k));
     }
 }
 
@@ -306,7 +316,7 @@ fn plan<'l>(
     ]
     .into_iter()
     .filter_map(|(k, x)| x.map(|x| (k, x)))
-    .filter(|(_, x)| (x.length as f64) < opts.tau)
+    .filter(|(_, x)| x.length_in(opts.metric) < opts.tau)
     .collect();
     if small.is_empty() {
         return Err(KeepReason::Size);
@@ -316,8 +326,8 @@ fn plan<'l>(
         // above r whenever the Reeb loop is below tau.
         let ratio = match &l.cross {
             Some(c) => {
-                let (a, b) = (reeb.length.min(c.length), reeb.length.max(c.length));
-                b as f64 / a.max(1) as f64
+                let (a, b) = (reeb.length_in(opts.metric), c.length_in(opts.metric));
+                a.max(b) / a.min(b).max(1e-9)
             }
             None => f64::INFINITY,
         };
@@ -332,7 +342,10 @@ fn plan<'l>(
     if allowed.is_empty() {
         return Err(KeepReason::Mode);
     }
-    allowed.sort_by_key(|(_, x)| x.length);
+    allowed.sort_by(|a, b| {
+        a.1.length_in(opts.metric)
+            .total_cmp(&b.1.length_in(opts.metric))
+    });
     Ok(allowed)
 }
 
@@ -429,17 +442,26 @@ fn certify(
         else {
             return Certificate::Unsure;
         };
+        let searcher = loops::Searcher {
+            metric: limits.metric,
+            geometry: Geometry {
+                affine,
+                fractions: vol.fractions.as_ref(),
+            },
+        };
         for b in &generators {
-            let found = search::odd_loop(&mut g, b, &search::Everywhere, limits.cross);
+            let found = searcher.odd_loop(&mut g, b, limits.below);
             match found.found {
                 Some(short) => {
-                    let describe =
-                        |x: &[Vertex], p: &[Vertex]| loops::describe(vol, x, Some(p), affine);
+                    let describe = |x: &[Vertex], p: &[Vertex]| {
+                        loops::describe(vol, x, Some(p), &searcher.geometry)
+                    };
                     return Certificate::Below(HandleLoops {
                         reeb: Some(describe(&short, b)),
                         cross: Some(describe(b, &short)),
                         exact: true,
                         basis: None,
+                        cut_points: None,
                     });
                 }
                 None if !found.exact => return Certificate::Unsure,
@@ -462,6 +484,9 @@ enum Wall {
     /// The smallest set of samples separating the fan's two faces within a box this much larger
     /// than the loop's, with the + face as the source or not.
     MinCut(i64, bool),
+    /// The samples near the fan (within this distance) thinned by simple samples, then cut at
+    /// the k-th sample that can cut them (see [`closure::peel_walls`]).
+    Peel(f64, usize),
 }
 
 impl Wall {
@@ -470,6 +495,7 @@ impl Wall {
             Wall::Fan(d) => d,
             Wall::Single(_) => SINGLE_SAMPLE_REACH,
             Wall::MinCut(margin, _) => margin as f64,
+            Wall::Peel(d, _) => d,
         }
     }
 
@@ -478,6 +504,7 @@ impl Wall {
             Wall::Fan(_) => "fan",
             Wall::Single(_) => "single_sample",
             Wall::MinCut(..) => "min_cut",
+            Wall::Peel(..) => "peeled",
         }
     }
 }
@@ -499,11 +526,21 @@ fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
                 .map(Wall::Single),
         );
     }
-    for margin in MIN_CUT_MARGINS {
+    let big = (lp.length as i64 / 4).max(MIN_CUT_MARGINS[MIN_CUT_MARGINS.len() - 1]);
+    for margin in MIN_CUT_MARGINS.into_iter().chain((big > 8).then_some(big)) {
         out.extend([Wall::MinCut(margin, true), Wall::MinCut(margin, false)]);
+    }
+    for d in PEEL_REACH {
+        out.extend((0..PEEL_CUTS).map(|k| Wall::Peel(d, k)));
     }
     out
 }
+
+/// Samples of a peeled region tried as the cut, nearest the loop's centroid first.
+const PEEL_CUTS: usize = 6;
+
+/// Distances from the fan of the regions peeled, tried in turn.
+const PEEL_REACH: [f64; 2] = [1.5, 3.0];
 
 /// Tries the walls across `lp` by each of `ops` until one is kept (see [`closure::close`]).
 fn close_loop(
@@ -516,6 +553,7 @@ fn close_loop(
     refused: &mut usize,
 ) -> Option<(closure::Applied, Wall)> {
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
+    let mut peeled: Vec<Vec<[i64; 3]>> = Vec::new();
     for &op in ops {
         for w in walls_for(lp, op, conn) {
             let samples = match w {
@@ -525,6 +563,18 @@ fn close_loop(
                 Wall::MinCut(margin, plus) => {
                     match closure::min_cut_wall(vol, conn, &lp.vertices, op, margin, plus) {
                         Some(x) => x,
+                        None => continue,
+                    }
+                }
+                Wall::Peel(d, k) => {
+                    // Peeled once per distance; its cuts are tried in turn.
+                    if k == 0 {
+                        let region = closure::wall(&points, d);
+                        let centre = closure::centroid(&points);
+                        peeled = closure::peel_walls(vol, conn, &region, centre, op, PEEL_CUTS);
+                    }
+                    match peeled.get(k) {
+                        Some(x) => x.clone(),
                         None => continue,
                     }
                 }
@@ -584,13 +634,36 @@ fn close_handle<'l>(
             let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(graph));
             let x = loops::cross_loop(&mut g, &lp.vertices, usize::MAX);
             *graph = g.into_cache();
-            std::borrow::Cow::Owned(loops::describe(vol, &x?, Some(&lp.vertices), affine))
+            let geometry = Geometry {
+                affine,
+                fractions: vol.fractions.as_ref(),
+            };
+            std::borrow::Cow::Owned(loops::describe(vol, &x?, Some(&lp.vertices), &geometry))
         }
     };
     let ops = ops_for(&found, true);
     let ops: Vec<Operation> = ops.into_iter().filter(|&op| opts.mode.allows(op)).collect();
-    let (a, w) = close_loop(vol, conn, &found, &lp.vertices, &ops, graph, refused)?;
-    Some((other, found, a, w))
+    if let Some((a, w)) = close_loop(vol, conn, &found, &lp.vertices, &ops, graph, refused) {
+        return Some((other, found, a, w));
+    }
+    // Last, the handle's two curves that cross once (its cut and the loop round its cycle): a
+    // closure of either removes the handle too, and the cut, a contour, spans a flat region.
+    let (p, q) = l.basis.as_ref()?;
+    for (x, y) in [(p, q), (q, p)] {
+        let geometry = Geometry {
+            affine,
+            fractions: vol.fractions.as_ref(),
+        };
+        let lx = loops::describe(vol, x, Some(y), &geometry);
+        let ops: Vec<Operation> = [Operation::Collapse, Operation::Pinch]
+            .into_iter()
+            .filter(|&op| opts.mode.allows(op))
+            .collect();
+        if let Some((a, w)) = close_loop(vol, conn, &lx, y, &ops, graph, refused) {
+            return Some((other, std::borrow::Cow::Owned(lx), a, w));
+        }
+    }
+    None
 }
 
 /// Removes every handle of `vol` smaller than `opts.tau` (see the module documentation). `vol`
@@ -626,6 +699,7 @@ pub fn simplify(
             graph: GraphCache::default(),
             slices: SliceCache::new(conn),
             memo: FastMap::default(),
+            failed: FastMap::default(),
         };
         progress.start(&format!("pass {pass}"), vol.dims[2] as u64 + 1);
         // Highest slice stepped so far: slices above it are seen for the first time.
@@ -666,7 +740,8 @@ pub fn simplify(
             seconds.loops += t.elapsed().as_secs_f64();
             let t = std::time::Instant::now();
             let mut order: Vec<usize> = (0..n).collect();
-            order.sort_by_key(|&i| measured[i].size().unwrap_or(usize::MAX));
+            let size = |i: usize| measured[i].size_in(opts.metric).unwrap_or(f64::INFINITY);
+            order.sort_by(|&a, &b| size(a).total_cmp(&size(b)));
             // Ribbons of this step whose generators were checked.
             let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
             // Walls written at this step, as local boxes; the lowest slice they touched.
@@ -676,6 +751,7 @@ pub fn simplify(
                 let (h, l) = (&new[i], &measured[i]);
                 let keep = |reason| Kept {
                     size: l.size(),
+                    size_mm: l.size_in(Metric::Millimetres),
                     reeb: l.reeb.as_ref().map(|x| x.length),
                     cross: l.cross.as_ref().map(|x| x.length),
                     kind: h.kind,
@@ -722,6 +798,11 @@ pub fn simplify(
                 {
                     continue;
                 }
+                let key = memo_key(h);
+                if caches.failed.contains_key(&key) {
+                    kept.push((s, keep(KeepReason::ClosureFailed)));
+                    continue;
+                }
                 let done = close_handle(
                     vol,
                     opts,
@@ -732,6 +813,7 @@ pub fn simplify(
                     &mut refused,
                 );
                 let Some((which, lp, applied, wall_kind)) = done else {
+                    caches.failed.insert(key, ());
                     kept.push((s, keep(KeepReason::ClosureFailed)));
                     continue;
                 };
@@ -751,6 +833,7 @@ pub fn simplify(
                 let (dist, dist_mm) = max_distance(&changed, &lp.points, affine);
                 removed.push(Removed {
                     size: l.size().unwrap_or(lp.length),
+                    size_mm: l.size_in(Metric::Millimetres).unwrap_or(lp.length_mm),
                     reeb: l.reeb.as_ref().map(|x| x.length),
                     cross: l.cross.as_ref().map(|x| x.length),
                     kind: h.kind,
@@ -816,7 +899,11 @@ pub fn simplify(
         if pass == MAX_PASSES {
             // The last pass closed something, so its measurements may be stale: say so.
             for (_, k) in &mut kept {
-                if k.size.is_some_and(|s| (s as f64) < opts.tau) && k.reason == KeepReason::Size {
+                let size = match opts.metric {
+                    Metric::Edges => k.size.map(|s| s as f64),
+                    Metric::Millimetres => k.size_mm,
+                };
+                if size.is_some_and(|s| s < opts.tau) && k.reason == KeepReason::Size {
                     k.reason = KeepReason::PassLimit;
                 }
             }

@@ -5,14 +5,14 @@ mod common;
 
 use common::{shapes, Rng, BOTH};
 use isotopo::loops::search::{is_nonseparating, Everywhere, Graph};
-use isotopo::loops::{measure, Encloses, HandleLoops, Limits, SliceCache};
+use isotopo::loops::{measure, Encloses, HandleLoops, Limits, Metric, SliceCache};
 use isotopo::progress::NoProgress;
 use isotopo::surface::Vertex;
 use isotopo::sweep::{find_handles, Axis, HandleReport, MaskVolume};
 use isotopo::topology::cases::cases;
 use isotopo::topology::Connectivity;
 use isotopo::volume::{Affine, InMemoryVolume};
-use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, FRAC_PI_6, TAU};
+use std::f64::consts::TAU;
 
 fn analyze(
     vol: &InMemoryVolume,
@@ -156,79 +156,109 @@ fn every_loop_of_random_volumes_is_a_real_loop() {
     );
 }
 
-/// Tori of major radius R and minor radius r: one loop goes round the tube (≈ 2πr), the other
-/// round the hole (≈ 2π(R − r)). Graph paths over edge crossings overestimate a circle's length
-/// by about 4/π in voxel edges; the millimetre length through edge midpoints by under 10%.
+/// Both loops of a torus of major radius R and minor radius r, tilted by `tilt` about x, swept
+/// along z, shortest in edges and in millimetres (vertices interpolated on their edges).
+fn torus_loops(big: f64, small: f64, tilt: f64, conn: Connectivity) -> (HandleLoops, HandleLoops) {
+    let n = (2.0 * (big + small) + 6.0) as usize;
+    let vol = shapes::torus(n, big, small, tilt, 0.0, 0.0);
+    let mut v = vol.clone();
+    let opts = common::opts(0.0, conn);
+    let mut masks =
+        MaskVolume::from_reader_with_fractions(&mut v, &opts, Axis::Z, None, &NoProgress).unwrap();
+    let r = find_handles(&mut masks, Axis::Z, conn, &NoProgress).unwrap();
+    assert_eq!(r.handles.len(), 1, "R {big} r {small} tilt {tilt}");
+    let mut g = Graph::new(&masks, cases(conn));
+    let mut cache = SliceCache::new(conn);
+    let h = &r.handles[0];
+    let edges = measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, Limits::NONE);
+    let mm = measure(
+        &mut g,
+        &mut cache,
+        h,
+        conn,
+        &Affine::IDENTITY,
+        Limits::exact(Metric::Millimetres),
+    );
+    (edges, mm)
+}
+
+/// The loop round the tube and the loop round the hole of a handle's two.
+fn girth_and_hole(l: &HandleLoops) -> (&isotopo::loops::Loop, &isotopo::loops::Loop) {
+    let (a, b) = (l.reeb.as_ref().unwrap(), l.cross.as_ref().unwrap());
+    if a.encloses == Encloses::Material {
+        (a, b)
+    } else {
+        (b, a)
+    }
+}
+
+/// Tori of major radius R and minor radius r: one loop goes round the tube (2πr), the other
+/// round the hole (2π(R − r)), wherever they run: on a torus tilted 15° the Reeb cycle spans
+/// 5 slices (z 53..57 for R 40, r 12), the loop round the tube 23. Lengths in millimetres, of
+/// the loops shortest in millimetres, against the analytic ones. The bounds are what the graph
+/// allows: its edges lie on cube faces, so a loop running diagonally to the grid in 3D is longer
+/// than the circle it follows (worst measured: 1.15 at a tilt of 37°, round the hole; a loop in
+/// a grid plane is within 1%); the chords between interpolated vertices cut a circle's arcs
+/// (down to 0.998). In edges, a circle in a grid plane crosses 8r edges, 4/π of its length.
 #[test]
-fn torus_loop_lengths() {
+fn torus_loops_are_the_shortest_wherever_they_go() {
     let mut report = Vec::new();
-    for (big, small) in [(8.0, 3.0), (10.0, 2.5), (12.0, 4.0), (7.0, 1.8)] {
-        for (name, ax, ay) in [
-            ("upright", 0.0, 0.0),
-            ("wheel", FRAC_PI_2, 0.0),
-            ("tilted 30° x", FRAC_PI_6, 0.0),
-            ("tilted 45° y", 0.0, FRAC_PI_4),
-        ] {
-            let n = (2.0 * (big + small) + 6.0) as usize;
-            let vol = shapes::torus(n, big, small, ax, ay, 0.0);
-            for conn in BOTH {
-                let (_, r, loops) = analyze(&vol, 0.0, conn, Axis::Z);
-                assert_eq!(r.handles.len(), 1);
-                let (a, b) = (
-                    loops[0].reeb.as_ref().unwrap(),
-                    loops[0].cross.as_ref().unwrap(),
-                );
-                let (girth, hole) = if a.encloses == Encloses::Material {
-                    (a, b)
-                } else {
-                    (b, a)
-                };
-                let (eg, eh) = (TAU * small, TAU * (big - small));
-                report.push(format!(
-                    "R {big} r {small} {name:<13} conn {:>2}: girth {:>3} edges {:5.1} mm (2πr {eg:5.1}), hole {:>3} edges {:5.1} mm (2π(R-r) {eh:5.1})",
-                    conn.number(),
-                    girth.length,
-                    girth.length_mm,
-                    hole.length,
-                    hole.length_mm
-                ));
-                // The loop round the tube is the shortest such loop.
-                let g = girth.length as f64 / eg;
-                assert!(
-                    (1.0..1.45).contains(&g),
-                    "R {big} r {small} {name}: girth {} edges vs 2πr {eg:.1}",
-                    girth.length
-                );
-                assert!(
-                    (0.95..1.25).contains(&(girth.length_mm / eg)),
-                    "girth {:.1} mm vs {eg:.1}",
-                    girth.length_mm
-                );
-                // Round the hole: the cross loop is shortest; a Reeb loop must follow the
-                // cycle's ribbons, which on a tilted torus is a longer, non-planar way round.
-                let limit = if a.encloses == Encloses::Void && name.starts_with("tilted") {
-                    1.75
-                } else {
-                    1.4
-                };
-                assert!(
-                    (1.0..limit).contains(&(hole.length as f64 / eh)),
-                    "R {big} r {small} {name}: hole {} edges vs 2π(R-r) {eh:.1}",
-                    hole.length
-                );
-                assert!(
-                    (0.95..limit).contains(&(hole.length_mm / eh)),
-                    "hole {:.1} mm vs {eh:.1}",
-                    hole.length_mm
-                );
-                // Upright, the Reeb loop goes round the tube; on a wheel, round the hole.
-                if name == "upright" {
-                    assert_eq!(a.encloses, Encloses::Material);
-                }
-                if name == "wheel" {
-                    assert_eq!(a.encloses, Encloses::Void);
-                }
-            }
+    // (R, r, tilt in degrees, bound on the hole loop's ratio: measured 1.072, 1.076, 1.152,
+    // 1.139, 1.149, 1.005, 1.005)
+    let cases = [
+        (40.0, 12.0, 15.0, 1.08),
+        (36.0, 10.0, 75.0, 1.08),
+        (20.0, 6.0, 37.0, 1.16),
+        (20.0, 6.0, 60.0, 1.15),
+        (12.0, 4.0, 30.0, 1.155),
+        (10.0, 3.0, 0.0, 1.01),
+        (10.0, 3.0, 90.0, 1.01),
+    ];
+    for (big, small, tilt, hole_bound) in cases {
+        for conn in BOTH {
+            let (edges, mm) = torus_loops(big, small, f64::to_radians(tilt), conn);
+            let (eg, eh) = (TAU * small, TAU * (big - small));
+            let what = format!("R {big} r {small} tilt {tilt} conn {}", conn.number());
+            assert!(
+                edges.exact && mm.exact,
+                "{what}: a search ran out of budget"
+            );
+            let (g_e, h_e) = girth_and_hole(&edges);
+            let (g_mm, h_mm) = girth_and_hole(&mm);
+            report.push(format!(
+                "{what}: round the tube {} edges ({:.3} of 8r), {:.3} of 2πr in mm; round the hole {} edges, {:.3} of 2π(R-r) in mm",
+                g_e.length,
+                g_e.length as f64 / (8.0 * small),
+                g_mm.length_mm / eg,
+                h_e.length,
+                h_mm.length_mm / eh
+            ));
+            assert!(
+                (0.99..1.01).contains(&(g_mm.length_mm / eg)),
+                "{what}: round the tube {:.1} mm vs 2πr {eg:.1}",
+                g_mm.length_mm
+            );
+            assert!(
+                (0.99..hole_bound).contains(&(h_mm.length_mm / eh)),
+                "{what}: round the hole {:.1} mm vs 2π(R - r) {eh:.1}",
+                h_mm.length_mm
+            );
+            // In edges: the loop round the tube crosses 8r edges, as a circle in a grid plane.
+            assert!(
+                (0.97..1.03).contains(&(g_e.length as f64 / (8.0 * small))),
+                "{what}: round the tube {} edges vs 8r = {}",
+                g_e.length,
+                8.0 * small
+            );
+            // Each metric's loop is no longer than the other's in its own unit.
+            assert!(
+                g_e.length.min(h_e.length) <= g_mm.length.min(h_mm.length),
+                "{what}"
+            );
+            assert!(
+                g_mm.length_mm.min(h_mm.length_mm) <= g_e.length_mm.min(h_e.length_mm) + 1e-9,
+                "{what}"
+            );
         }
     }
     println!("{}", report.join("\n"));

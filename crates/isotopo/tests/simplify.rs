@@ -68,6 +68,7 @@ fn options(tau: f64, mode: Mode, conn: Connectivity) -> SimplifyOptions {
         mode,
         max_ratio: None,
         conn,
+        metric: isotopo::loops::Metric::Edges,
     }
 }
 

@@ -221,14 +221,16 @@ pub fn min_cut_wall(
             }
         }
     }
-    // Flow network: sample i is arc 2i -> 2i + 1 (capacity 1, or unbounded for padding);
-    // S = 2n, T = 2n + 1.
+    let foreign = foreign_neighbours(vol, conn, lp, op, lo, hi);
+    // Flow network: sample i is arc 2i -> 2i + 1 (capacity 1, or unbounded for padding and for
+    // samples beside another piece of the other side); S = 2n, T = 2n + 1.
     let n = samples.len() as u32;
     let (source, sink) = (2 * n, 2 * n + 1);
     let mut net = Network::new(2 * n as usize + 2);
     for (i, &q) in samples.iter().enumerate() {
         let i = i as u32;
-        net.arc(2 * i, 2 * i + 1, if in_volume(q) { 1 } else { UNBOUNDED });
+        let fixed = !in_volume(q) || foreign.contains_key(&q);
+        net.arc(2 * i, 2 * i + 1, if fixed { UNBOUNDED } else { 1 });
         for d in changed_side_neighbours(op, conn) {
             let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
             if state(r) != side {
@@ -256,6 +258,63 @@ pub fn min_cut_wall(
         .map(|i| samples[i as usize])
         .collect();
     (!wall.is_empty()).then_some(wall)
+}
+
+/// Samples of the changed side next to a piece of the other side that is not the loop's own
+/// (a component of the box's samples of the other side holding none of the loop's ends there):
+/// flipping one would join that piece to the wall (a blob floating in a tunnel to fill, a
+/// cavity beside a bar to cut), so the cut must go round them.
+fn foreign_neighbours(
+    vol: &MaskVolume,
+    conn: Connectivity,
+    lp: &[Vertex],
+    op: Operation,
+    lo: [i64; 3],
+    hi: [i64; 3],
+) -> FastMap<[i64; 3], ()> {
+    let other = op.target();
+    let dims = vol.dims.map(|n| n as i64);
+    let in_box = |q: [i64; 3]| (0..3).all(|k| lo[k] <= q[k] && q[k] <= hi[k]);
+    let state =
+        |q: [i64; 3]| (0..3).all(|k| q[k] >= 0 && q[k] < dims[k]) && vol.get(q[0], q[1], q[2]);
+    // The other side's adjacency: that of the samples the wall joins once flipped.
+    let adj = changed_side_neighbours(super::opposite(op), conn);
+    // The loop's ends on the other side, and their components within the box.
+    let mut own: FastMap<[i64; 3], ()> = FastMap::default();
+    let mut stack: Vec<[i64; 3]> = Vec::new();
+    for v in lp {
+        for q in [v.p, v.end()] {
+            if in_box(q) && state(q) == other && own.insert(q, ()).is_none() {
+                stack.push(q);
+            }
+        }
+    }
+    while let Some(q) = stack.pop() {
+        for d in adj {
+            let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+            if in_box(r) && state(r) == other && own.insert(r, ()).is_none() {
+                stack.push(r);
+            }
+        }
+    }
+    let mut out: FastMap<[i64; 3], ()> = FastMap::default();
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                let q = [x, y, z];
+                if state(q) != other || own.contains_key(&q) {
+                    continue;
+                }
+                for d in adj {
+                    let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+                    if in_box(r) && state(r) != other {
+                        out.insert(r, ());
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// A flow network with integer capacities, for Dinic's maximum flow.

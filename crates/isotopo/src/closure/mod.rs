@@ -23,8 +23,10 @@
 //! components and cavities). Otherwise the volume is restored.
 
 mod mincut;
+mod peel;
 
 pub use mincut::min_cut_wall;
+pub use peel::{peel_walls, topological_numbers};
 
 use crate::loops::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
 use crate::surface::{vertex_of, PieceRef, Vertex};
@@ -46,6 +48,14 @@ impl Operation {
     /// State the wall's samples are set to.
     pub fn target(self) -> bool {
         self == Operation::Collapse
+    }
+}
+
+/// The other operation.
+pub(crate) fn opposite(op: Operation) -> Operation {
+    match op {
+        Operation::Collapse => Operation::Pinch,
+        Operation::Pinch => Operation::Collapse,
     }
 }
 

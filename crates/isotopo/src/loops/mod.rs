@@ -16,6 +16,7 @@ pub mod basis;
 pub mod search;
 
 use crate::error::Result;
+use crate::geometry::Geometry;
 use crate::surface::{PieceRef, Vertex};
 use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
@@ -23,7 +24,7 @@ use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
 use search::{
     any_odd_loop, odd_loop, odd_simple_loop, path_to, shortest_odd_loop, Everywhere, FastMap,
-    Graph, InBox, PieceSet, Region,
+    Graph, InBox, OddLoop, PieceSet, Region,
 };
 
 /// What a loop's spanning disk would pass through.
@@ -45,13 +46,24 @@ pub struct Loop {
     pub points: Vec<[f64; 3]>,
     /// Length in edges of the surface graph (voxel edges).
     pub length: usize,
-    /// Length of the polyline in millimetres.
+    /// Length in millimetres of the polyline through the vertices' positions (interpolated on
+    /// their edges when the volume was read with its fractions, else the edges' midpoints).
     pub length_mm: f64,
     pub encloses: Encloses,
 }
 
+impl Loop {
+    /// Length in the metric's unit.
+    pub fn length_in(&self, metric: Metric) -> f64 {
+        match metric {
+            Metric::Edges => self.length as f64,
+            Metric::Millimetres => self.length_mm,
+        }
+    }
+}
+
 /// A handle's two loops. Either may be missing when its search stopped at a limit.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct HandleLoops {
     pub reeb: Option<Loop>,
     pub cross: Option<Loop>,
@@ -61,6 +73,9 @@ pub struct HandleLoops {
     /// Two closed curves on the surface that cross once, such that no loop shorter than the
     /// handle's size (or the limit) crosses either an odd number of times (see [`measure`]).
     pub basis: Option<(Vec<Vertex>, Vec<Vertex>)>,
+    /// A Reeb-cycle handle's cut, as points (edge midpoints, original voxel coordinates): its
+    /// Reeb loop is the shortest loop crossing it once.
+    pub cut_points: Option<Vec<[f64; 3]>>,
 }
 
 impl HandleLoops {
@@ -92,6 +107,15 @@ impl HandleLoops {
         }
     }
 
+    /// The smaller loop's length in the metric's unit.
+    pub fn size_in(&self, metric: Metric) -> Option<f64> {
+        [&self.reeb, &self.cross]
+            .into_iter()
+            .flatten()
+            .map(|l| l.length_in(metric))
+            .min_by(f64::total_cmp)
+    }
+
     /// The smaller loop.
     pub fn smallest(&self) -> Option<&Loop> {
         match (&self.reeb, &self.cross) {
@@ -101,17 +125,85 @@ impl HandleLoops {
     }
 }
 
-/// Limits on the searches (edges).
+/// What a loop's length is measured in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Metric {
+    /// Edges of the surface graph ("voxel edges", the paper's unit): a loop round a one-voxel
+    /// bridge is 4 whatever the spacing.
+    #[default]
+    Edges,
+    /// Millimetres along the segments between the vertices' positions, interpolated on their
+    /// edges (where the volume was read with its fractions) and mapped by the file's affine.
+    Millimetres,
+}
+
+/// Limits on the searches.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// Longest cross and Reeb loop looked for (simplify: tau, or tau times `--max-ratio`;
-    /// longer loops cannot change a decision). With `usize::MAX` both loops are measured
+    /// Longest loop looked for, in the metric's unit (simplify: tau, or tau times
+    /// `--max-ratio`; longer loops cannot change a decision). Infinite: both loops are measured
     /// exactly, within the searches' budgets.
-    pub cross: usize,
+    pub below: f64,
+    /// What loops are shortest in.
+    pub metric: Metric,
+    /// Only the smaller loop matters (simplify without `--max-ratio`): a Reeb loop need not be
+    /// the shortest when the cross loop is surely shorter than it.
+    pub size_only: bool,
 }
 
 impl Limits {
-    pub const NONE: Limits = Limits { cross: usize::MAX };
+    pub const NONE: Limits = Limits {
+        below: f64::INFINITY,
+        metric: Metric::Edges,
+        size_only: false,
+    };
+
+    /// No limit, shortest in `metric`.
+    pub fn exact(metric: Metric) -> Limits {
+        Limits {
+            metric,
+            ..Limits::NONE
+        }
+    }
+}
+
+/// The searches of one metric on one volume's surface graph.
+pub struct Searcher<'g> {
+    pub metric: Metric,
+    pub geometry: Geometry<'g>,
+}
+
+impl Searcher<'_> {
+    /// The shortest loop crossing `curve` an odd number of times, if one is shorter than
+    /// `below` (in the metric's unit), anywhere on the surface.
+    pub fn odd_loop(&self, top: &mut Graph, curve: &[Vertex], below: f64) -> OddLoop {
+        match self.metric {
+            Metric::Edges => {
+                let limit = if below.is_finite() {
+                    below.ceil().max(0.0) as usize
+                } else {
+                    usize::MAX
+                };
+                odd_loop(top, curve, &Everywhere, limit)
+            }
+            Metric::Millimetres => {
+                let r = search::odd_loop_mm(top, &self.geometry, curve, &Everywhere, below);
+                OddLoop {
+                    found: r.found.map(|(lp, _)| lp),
+                    exact: r.exact,
+                }
+            }
+        }
+    }
+
+    /// A loop's length in the metric's unit.
+    pub fn length(&self, frame: &Frame, lp: &[Vertex]) -> f64 {
+        match self.metric {
+            Metric::Edges => lp.len() as f64,
+            Metric::Millimetres => self.geometry.loop_mm(frame, lp),
+        }
+    }
 }
 
 /// Maps a vertex between frames (both relative to the original volume).
@@ -458,6 +550,7 @@ fn find(
     h: &Handle,
     conn: Connectivity,
     limits: Limits,
+    searcher: &Searcher,
 ) -> Found {
     let vol = top.vol;
     let top_level = matches!(h.located.volume, CycleVolume::Top);
@@ -473,7 +566,14 @@ fn find(
             basis: None,
         };
     };
-    let first = odd_loop(top, &p, &Everywhere, limits.cross);
+    let frame = vol.frame;
+    let len = |lp: &[Vertex]| searcher.length(&frame, lp);
+    if limits.size_only && top_level {
+        if let Some(f) = cross_is_smaller(top, cache, h, searcher, &p, limits) {
+            return f;
+        }
+    }
+    let first = searcher.odd_loop(top, &p, limits.below);
     let mut exact = first.exact;
     let q1 = match first.found {
         Some(q) => Some(q),
@@ -488,7 +588,7 @@ fn find(
         };
     };
     // Q1 found beyond the limit is not the shortest: only what crosses it matters.
-    let second = odd_loop(top, &q1, &Everywhere, limits.cross);
+    let second = searcher.odd_loop(top, &q1, limits.below);
     exact &= second.exact;
     let basis = Some((p.clone(), q1.clone()));
     if top_level {
@@ -502,22 +602,22 @@ fn find(
     // Intra-ribbon: the Reeb loop is the shorter of P and Q2; refine the pair until each loop
     // is the shortest crossing the other (lengths only fall, so this ends).
     let (mut reeb, mut cross) = match second.found {
-        Some(q2) if q2.len() < p.len() => (q2, q1),
+        Some(q2) if len(&q2) < len(&p) => (q2, q1),
         _ => (p, q1),
     };
-    if limits.cross == usize::MAX && exact {
+    if limits.below.is_infinite() && exact {
         loop {
-            let better = odd_loop(top, &reeb, &Everywhere, cross.len());
+            let better = searcher.odd_loop(top, &reeb, len(&cross));
             exact &= better.exact;
             let Some(c) = better.found else { break };
             cross = c;
-            let better = odd_loop(top, &cross, &Everywhere, reeb.len());
+            let better = searcher.odd_loop(top, &cross, len(&reeb));
             exact &= better.exact;
             let Some(r) = better.found else { break };
             reeb = r;
         }
     }
-    let cross = (cross.len() < limits.cross).then_some(cross);
+    let cross = (len(&cross) < limits.below).then_some(cross);
     Found {
         reeb: Some(reeb),
         cross,
@@ -526,7 +626,37 @@ fn find(
     }
 }
 
-/// Measures both loops of a handle of the volume whose surface graph is `top` (see [`find`]).
+/// When only the smaller loop matters: some loop crossing `p` once, found cheaply (chained round
+/// a tall cycle), then the shortest loop `c` crossing it once; if no loop shorter than `c`
+/// crosses `p` once (a search only as deep as `c` is long, so cheap for the short cross loops
+/// of noise handles), `c` is the handle's smaller loop and the shortest loop crossing `p` need
+/// not be looked for. `None` otherwise.
+fn cross_is_smaller(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    h: &Handle,
+    searcher: &Searcher,
+    p: &[Vertex],
+    limits: Limits,
+) -> Option<Found> {
+    let frame = top.vol.frame;
+    let first = some_odd_loop(top, cache, h, p)?;
+    let c = searcher.odd_loop(top, &first, limits.below).found?;
+    let shorter = searcher.odd_loop(top, p, searcher.length(&frame, &c));
+    if !shorter.none_below() {
+        return None;
+    }
+    Some(Found {
+        reeb: Some(first.clone()),
+        cross: Some(c),
+        exact: false,
+        basis: Some((p.to_vec(), first)),
+    })
+}
+
+/// Measures both loops of a handle of the volume whose surface graph is `top` (see [`find`]),
+/// shortest in `limits.metric`; lengths in millimetres along the vertices' interpolated
+/// positions where the volume has its fractions.
 pub fn measure(
     top: &mut Graph,
     cache: &mut SliceCache,
@@ -536,14 +666,22 @@ pub fn measure(
     limits: Limits,
 ) -> HandleLoops {
     let vol = top.vol;
-    let found = find(top, cache, h, conn, limits);
+    let geometry = Geometry {
+        affine,
+        fractions: vol.fractions.as_ref(),
+    };
+    let searcher = Searcher {
+        metric: limits.metric,
+        geometry,
+    };
+    let found = find(top, cache, h, conn, limits, &searcher);
     let (reeb, cross) = (found.reeb, found.cross);
     let mut r = reeb
         .as_ref()
-        .map(|lp| describe(vol, lp, cross.as_deref(), affine));
+        .map(|lp| describe(vol, lp, cross.as_deref(), &geometry));
     let mut c = cross
         .as_ref()
-        .map(|lp| describe(vol, lp, reeb.as_deref(), affine));
+        .map(|lp| describe(vol, lp, reeb.as_deref(), &geometry));
     // Exactly one of the two encloses material (paper §2.2); where linking could not tell, the
     // other loop decides.
     if let (Some(a), Some(b)) = (&mut r, &mut c) {
@@ -559,11 +697,19 @@ pub fn measure(
             }
         }
     }
+    let cut_points = matches!(h.located.volume, CycleVolume::Top).then(|| {
+        h.located
+            .cut
+            .iter()
+            .map(|v| vol.frame.to_original(v.midpoint()))
+            .collect()
+    });
     HandleLoops {
         reeb: r,
         cross: c,
         exact: found.exact,
         basis: found.basis,
+        cut_points,
     }
 }
 
@@ -573,7 +719,7 @@ pub fn describe(
     vol: &MaskVolume,
     lp: &[Vertex],
     partner: Option<&[Vertex]>,
-    affine: &Affine,
+    geometry: &Geometry,
 ) -> Loop {
     let points: Vec<[f64; 3]> = lp
         .iter()
@@ -581,7 +727,7 @@ pub fn describe(
         .collect();
     Loop {
         length: lp.len(),
-        length_mm: polyline_mm(&points, affine),
+        length_mm: geometry.loop_mm(&vol.frame, lp),
         encloses: match partner {
             Some(x) => encloses(vol, lp, x),
             None => encloses_by_fan(vol, lp),

@@ -126,6 +126,9 @@ pub struct MaskVolume {
     /// Where these coordinates sit in the original volume.
     pub frame: Frame,
     empty: PlaneMask,
+    /// Where the surface crosses the grid edges, when the volume was read with them (for lengths
+    /// in millimetres; see [`MaskVolume::from_reader_with_fractions`]).
+    pub fractions: Option<crate::geometry::EdgeFractions>,
 }
 
 /// The scratch file behind an out-of-core [`MaskVolume`]: plane `w` at `w · plane_bytes`, its
@@ -212,6 +215,7 @@ impl MaskVolume {
             window: dims[2],
             frame,
             empty: PlaneMask::empty(dims[0], dims[1]),
+            fractions: None,
         }
     }
 
@@ -226,6 +230,7 @@ impl MaskVolume {
             window,
             frame,
             empty,
+            fractions: None,
         })
     }
 
@@ -237,6 +242,29 @@ impl MaskVolume {
         opts: &SurfaceOptions,
         axis: Axis,
         max_slices: Option<usize>,
+        progress: &dyn Progress,
+    ) -> Result<MaskVolume> {
+        MaskVolume::classify(reader, opts, axis, max_slices, false, progress)
+    }
+
+    /// [`MaskVolume::from_reader`], also recording where the surface crosses each grid edge
+    /// (one byte per crossing edge), for lengths in millimetres along the interpolated surface.
+    pub fn from_reader_with_fractions(
+        reader: &mut dyn SliceReader,
+        opts: &SurfaceOptions,
+        axis: Axis,
+        max_slices: Option<usize>,
+        progress: &dyn Progress,
+    ) -> Result<MaskVolume> {
+        MaskVolume::classify(reader, opts, axis, max_slices, true, progress)
+    }
+
+    fn classify(
+        reader: &mut dyn SliceReader,
+        opts: &SurfaceOptions,
+        axis: Axis,
+        max_slices: Option<usize>,
+        with_fractions: bool,
         progress: &dyn Progress,
     ) -> Result<MaskVolume> {
         let info = reader.info().clone();
@@ -253,6 +281,8 @@ impl MaskVolume {
         };
         let mut slice = Samples::new(info.dtype);
         let mut plane = PlaneMask::empty(nx, ny);
+        let mut fractions = with_fractions.then(|| crate::geometry::EdgeFractions::new(info.dims));
+        let mut below: Option<(Samples, PlaneMask)> = None;
         // Out of core along x or y: each input slice gives a line to every plane; gather a
         // chunk of them (within the default budget) and update each plane once per chunk.
         let chunk = (DEFAULT_WINDOW_BYTES / (plane.bits.len() * 8).max(1)).max(MIN_WINDOW);
@@ -261,6 +291,16 @@ impl MaskVolume {
         for z in 0..nz {
             reader.read_slice(&mut slice)?;
             plane.fill(&slice, &classifier);
+            if let Some(f) = &mut fractions {
+                f.add_plane(
+                    z,
+                    &slice,
+                    &plane,
+                    below.as_ref().map(|(s, m)| (s, m)),
+                    &classifier,
+                );
+                below = Some((slice.clone(), plane.clone()));
+            }
             if axis == Axis::Z {
                 match &vol.store {
                     Some(store) => store.write(z, 0, &plane.bits)?,
@@ -285,6 +325,7 @@ impl MaskVolume {
             progress.advance(1);
         }
         progress.finish();
+        vol.fractions = fractions;
         Ok(vol)
     }
 

@@ -4,6 +4,7 @@
 
 pub mod oracle;
 pub mod shapes;
+pub mod systole;
 
 use isotopo::topology::{genus, Connectivity, GenusReport, Inside, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;

@@ -18,6 +18,10 @@
 //! States live in dense arrays indexed by the graph's vertex numbers (one bit of parity per
 //! curve), reset by generation stamps, so a search costs what it visits and nothing more.
 
+mod weighted;
+
+pub use weighted::{odd_loop_mm, OddLoopMm};
+
 use crate::surface::{around, Around, PieceRef, Vertex, MAX_DEGREE};
 use crate::sweep::MaskVolume;
 use crate::topology::cases::Case;
@@ -436,13 +440,13 @@ const MAX_CUTS: usize = 8;
 
 /// States (vertex, parity) the multi-source phase of one search may visit: enough to close a
 /// loop around any handle of a large volume.
-pub const FIRST_BUDGET: usize = 1 << 21;
+pub const FIRST_BUDGET: usize = 1 << 22;
 
 /// States the exact phase (one search per vertex of the cut) may visit before settling for the
 /// best loop so far. Short loops, the ones that matter for simplification, are exact well within
 /// it; loops of large handles (beyond about 50 edges) may come out a few edges longer than the
 /// shortest.
-pub const EXACT_BUDGET: usize = 1 << 18;
+pub const EXACT_BUDGET: usize = 1 << 22;
 
 /// Reusable search state: per (vertex, parity) a stamp, a distance, a predecessor state and a
 /// source; per vertex the curves' marks.
@@ -462,6 +466,8 @@ struct Scratch {
     region_generation: u32,
     usable_stamp: Vec<u32>,
     usable_mask: Vec<u16>,
+    /// The searches in millimetres.
+    mm: weighted::MmScratch,
 }
 
 impl Scratch {
