@@ -113,8 +113,9 @@ pub struct Removed {
     /// `min_cut` (the fewest samples separating the fan's two faces) or `peeled` (the samples near
     /// the fan thinned by simple samples and cut at one).
     pub wall: &'static str,
-    /// Samples this closure flipped.
+    /// Samples this closure flipped: how many, and which (original coordinates).
     pub samples_changed: usize,
+    pub samples: Vec<[i64; 3]>,
     /// Handles the wall removed: 1, or more when it also closed tiny handles right beside.
     pub handles: usize,
     /// Farthest flipped sample from the loop's polyline (voxels, and mm).
@@ -844,6 +845,7 @@ pub fn simplify(
                     thickness: wall_kind.thickness(),
                     wall: wall_kind.name(),
                     samples_changed: changed.len(),
+                    samples: changed.clone(),
                     handles: applied.handles,
                     max_distance: dist,
                     max_distance_mm: dist_mm,

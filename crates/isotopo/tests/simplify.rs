@@ -13,6 +13,7 @@
 mod common;
 
 use common::oracle::betti;
+use common::systole::systole;
 use common::{shapes, Rng, BOTH};
 use isotopo::loops::search::Graph;
 use isotopo::loops::{measure, Limits, SliceCache};
@@ -151,8 +152,18 @@ fn check(
     // analysis of the result finds no handle below tau. With fill or cut only, every handle an
     // analysis with simplify's limits finds below tau has its small loops of the excluded kind.
     let result = volume_of(dims, &after_bits);
-    if opts.mode == Mode::Both && opts.tau.is_finite() && out.certified != Some(true) {
-        return Err(format!("{what}: not certified ({:?})", out.certified));
+    if opts.mode == Mode::Both && opts.tau.is_finite() {
+        if out.certified != Some(true) {
+            return Err(format!("{what}: not certified ({:?})", out.certified));
+        }
+        // The independent oracle: no non-separating cycle of the result is shorter than tau.
+        let sys = systole(&result, 0.0, conn);
+        if sys.edges.is_some_and(|e| (e as f64) < opts.tau) {
+            return Err(format!(
+                "{what}: a non-separating cycle of {:?} edges is left: {:?}",
+                sys.edges, sys.cycle
+            ));
+        }
     }
     let limits = if opts.mode == Mode::Both {
         Limits::NONE
@@ -197,19 +208,44 @@ fn check(
             closable.len()
         ));
     }
-    // 4. Every changed sample is near a closed loop.
+    // 4. Every changed sample was flipped by a wall, and lies where that kind of wall reaches
+    // from its own loop: a fan wall (or a peeled one, cut from the fan's samples) within its
+    // thickness of the fan, whose points are within a quarter of the loop's length of it; a
+    // single sample within its reach of the loop's centroid; a minimum cut inside its box.
+    let mut flipped_by: std::collections::HashMap<[i64; 3], usize> = Default::default();
+    for (i, r) in out.removed.iter().enumerate() {
+        for &q in &r.samples {
+            flipped_by.insert(q, i);
+        }
+    }
     for &(q, _) in &out.edits {
+        let Some(&i) = flipped_by.get(&q) else {
+            return Err(format!("{what}: changed sample {q:?} flipped by no wall"));
+        };
+        let r = &out.removed[i];
         let p = q.map(|c| c as f64);
-        let near = out.removed.iter().any(|r| {
-            let reach = r.thickness + r.length as f64 / 4.0 + 1e-6;
-            r.points.iter().any(|a| {
-                let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() <= reach
-            })
-        });
-        if !near {
+        let dist = |a: &[f64; 3]| {
+            ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2) + (p[2] - a[2]).powi(2)).sqrt()
+        };
+        let ok = match r.wall {
+            "min_cut" => (0..3).all(|k| {
+                let lo = r.points.iter().map(|a| a[k]).fold(f64::INFINITY, f64::min);
+                let hi = r
+                    .points
+                    .iter()
+                    .map(|a| a[k])
+                    .fold(f64::NEG_INFINITY, f64::max);
+                p[k] >= lo.floor() - r.thickness && p[k] <= hi.ceil() + r.thickness
+            }),
+            _ => {
+                let reach = r.thickness + r.length as f64 / 4.0 + 1e-6;
+                r.points.iter().any(|a| dist(a) <= reach)
+            }
+        };
+        if !ok {
             return Err(format!(
-                "{what}: changed sample {q:?} is far from every loop"
+                "{what}: changed sample {q:?} is beyond the reach of its {} wall (loop of {})",
+                r.wall, r.length
             ));
         }
     }
@@ -375,25 +411,43 @@ fn tau_keeps_the_large_handle_and_removes_the_small_one() {
     }
 }
 
-/// Random smoothed noise: hundreds of handles, nested ones, tiny components and cavities.
+/// The property test: random smoothed noise (hundreds of handles, nested ones, tiny components
+/// and cavities), every combination of connectivity, sweep axis, tau (finite and infinite) and
+/// mode drawn independently; every guarantee of `check`, the independent oracles deciding.
 #[test]
 fn random_volumes_keep_every_guarantee() {
-    let mut rng = Rng(0x51e1);
+    let cases: u64 = std::env::var("ISOTOPO_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(216);
     let mut failures = Vec::new();
     let mut removed = 0;
-    let mut cases_run = 0;
-    for case in 0..24 {
-        let n = [12, 16, 20][case % 3];
-        let dims = [n, n + 2, n - 1];
-        let v = common::smoothed_noise(dims, 2, &mut rng);
+    let mut seen = std::collections::HashSet::new();
+    for case in 0..cases {
+        let mut rng = Rng(0xfeed ^ (case * 7919));
+        let n = 10 + rng.below(11) as usize;
+        let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
+        let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
         let vol = common::volume_from(dims, &v);
-        let iso = common::quantile(&v, 0.35 + 0.3 * rng.f64());
-        let conn = BOTH[case % 2];
-        let tau = [4.5, 8.0, 12.0, f64::INFINITY][(case / 2) % 4];
-        let mode = [Mode::Both, Mode::Both, Mode::FillOnly, Mode::CutOnly][(case / 3) % 4];
-        let axis = [Axis::Z, Axis::Y, Axis::X][case % 3];
+        let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
+        // Every combination of connectivity, axis, finite or infinite tau and mode in turn.
+        let combo = case as usize % 36;
+        let conn = BOTH[combo % 2];
+        let axis = [Axis::Z, Axis::Y, Axis::X][combo / 2 % 3];
+        let tau = if combo / 6 % 2 == 0 {
+            [5.0, 8.0, 12.0, 20.0][rng.below(4) as usize]
+        } else {
+            f64::INFINITY
+        };
+        let mode = [Mode::Both, Mode::FillOnly, Mode::CutOnly][combo / 12];
+        seen.insert((
+            conn.number(),
+            axis.name(),
+            tau.is_finite(),
+            format!("{mode:?}"),
+        ));
         match check(
-            &format!("noise case {case}"),
+            &format!("case {case}"),
             &vol,
             iso,
             axis,
@@ -402,12 +456,19 @@ fn random_volumes_keep_every_guarantee() {
             Ok((o, _)) => removed += o.removed.len(),
             Err(e) => failures.push(e),
         }
-        cases_run += 1;
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-    assert_eq!(cases_run, 24);
-    // The cases must exercise something.
-    assert!(removed > 100, "only {removed} handles removed in all cases");
+    // Every combination drawn (2 connectivities x 3 axes x finite or not x 3 modes), and the
+    // cases exercised something.
+    assert!(
+        cases < 160 || seen.len() == 36,
+        "{} combinations",
+        seen.len()
+    );
+    assert!(
+        removed > 50 * cases as usize / 10,
+        "only {removed} handles removed"
+    );
 }
 
 /// `--max-ratio`: a long thin handle (a ring of thin tube, cross loop small, Reeb loop long) is
@@ -483,39 +544,86 @@ fn out_of_core_gives_the_same_result() {
     assert!(compared >= 8, "only {compared} runs edited anything");
 }
 
-/// Exploration (temporary): many random volumes, every combination.
+/// A mask from `tests/data` (dims, then the bits x fastest as hex) as a ±1 volume.
+fn fixture(name: &str) -> InMemoryVolume {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let dims: Vec<usize> = lines
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let hex: String = lines.collect();
+    let bytes: Vec<u8> = (0..hex.len() / 2)
+        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap())
+        .collect();
+    let [nx, ny, nz] = [dims[0], dims[1], dims[2]];
+    let inside: Vec<bool> = (0..nx * ny * nz)
+        .map(|i| (bytes[i / 8] >> (i % 8)) & 1 == 1)
+        .collect();
+    volume_of([nx, ny, nz], &inside)
+}
+
+/// Loops below tau that no handle's own measurement shows: in these two noise volumes the code
+/// that measured each handle on its own (its Reeb loop confined to its cycle, or chained round
+/// it, and the cross loop of that) kept handles it had measured at 8 edges or more, and left a
+/// non-separating cycle of 5 (seed 2) and 4 (seed 4) edges, found by the oracle. Now each kept
+/// handle's curves are certified and together span every loop.
 #[test]
-#[ignore]
-fn explore_random() {
-    let seeds: u64 = std::env::var("SEEDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(100);
-    let mut failures = Vec::new();
-    let only: Option<u64> = std::env::var("SEED").ok().and_then(|s| s.parse().ok());
-    for seed in 0..seeds {
-        if only.is_some_and(|o| o != seed) {
-            continue;
+fn no_loop_below_tau_hides_between_handles() {
+    for name in ["noise24-seed2.txt", "noise24-seed4.txt"] {
+        let vol = fixture(name);
+        for conn in BOTH {
+            for axis in [Axis::Z, Axis::X] {
+                let (out, _) = check(name, &vol, 0.0, axis, &options(8.0, Mode::Both, conn))
+                    .unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(out.certified, Some(true));
+                assert!(!out.kept.is_empty(), "{name}: the test needs kept handles");
+            }
         }
+    }
+}
+
+/// Walls the fan cannot close: in these random volumes every fan wall across the loops of one
+/// handle is refused (it cuts off a spur or touches another part of the surface); the code that
+/// stopped at fan walls kept each as `closure_failed`. Minimum-cut and peeled walls close them.
+#[test]
+fn walls_the_fan_cannot_close_are_closed_otherwise() {
+    // (case of the generator below, connectivity, axis, tau): the closure failures of the code
+    // before minimum-cut walls.
+    let failing = [
+        (46u64, Connectivity::Six, Axis::Y, 20.0),
+        (180, Connectivity::TwentySix, Axis::X, 20.0),
+        (256, Connectivity::TwentySix, Axis::Y, 20.0),
+        (258, Connectivity::Six, Axis::Y, 20.0),
+        (292, Connectivity::Six, Axis::X, 12.0),
+    ];
+    let mut other_walls = 0;
+    for (seed, conn, axis, tau) in failing {
         let mut rng = Rng(0xfeed ^ (seed * 7919));
         let n = 10 + rng.below(12) as usize;
         let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
         let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
         let vol = common::volume_from(dims, &v);
         let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
-        let conn = BOTH[rng.below(2) as usize];
-        let tau = [5.0, 8.0, 12.0, 20.0, f64::INFINITY][rng.below(5) as usize];
-        let axis = [Axis::Z, Axis::Y, Axis::X][rng.below(3) as usize];
-        if let Err(e) = check(
+        let (out, _) = check(
             &format!("seed {seed}"),
             &vol,
             iso,
             axis,
             &options(tau, Mode::Both, conn),
-        ) {
-            eprintln!("FAIL {e}");
-            failures.push(e);
-        }
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            out.kept.iter().all(|k| k.reason == KeepReason::Size),
+            "{:?}",
+            out.kept
+        );
+        other_walls += out.removed.iter().filter(|r| r.wall != "fan").count();
     }
-    assert!(failures.is_empty(), "{} failures", failures.len());
+    assert!(other_walls >= 3, "only {other_walls} walls other than fans");
 }
