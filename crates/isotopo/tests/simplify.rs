@@ -434,7 +434,7 @@ fn random_volumes_keep_every_guarantee() {
         let combo = case as usize % 36;
         let conn = BOTH[combo % 2];
         let axis = [Axis::Z, Axis::Y, Axis::X][combo / 2 % 3];
-        let tau = if combo / 6 % 2 == 0 {
+        let tau = if (combo / 6).is_multiple_of(2) {
             [5.0, 8.0, 12.0, 20.0][rng.below(4) as usize]
         } else {
             f64::INFINITY
