@@ -32,14 +32,19 @@ pub struct OddLoopMm {
     pub exact: bool,
 }
 
-/// An entry of the priority queue: distance then state, smallest first.
+/// An entry of the priority queue: distance, then the state's place on the grid (its vertex's
+/// key and parity), smallest first; then the state's number. Ties among equally near states go
+/// by the grid, not by the order the graph numbered its vertices in (which depends on what was
+/// searched before and on the window of planes), so the loops found never depend on either.
 #[derive(Clone, Copy, PartialEq)]
-struct Entry(f64, u32);
+struct Entry(f64, u64, u32);
 
 impl Eq for Entry {}
 impl Ord for Entry {
     fn cmp(&self, o: &Self) -> Ordering {
-        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+        o.0.total_cmp(&self.0)
+            .then(o.1.cmp(&self.1))
+            .then(o.2.cmp(&self.2))
     }
 }
 impl PartialOrd for Entry {
@@ -152,7 +157,13 @@ impl<'a, 'g> Search<'a, 'g> {
         sc.dist[st as usize] = 0.0;
         sc.pred[st as usize] = u32::MAX;
         sc.source[st as usize] = src;
-        self.heap.push(Entry(0.0, st));
+        let tie = self.tie(st);
+        self.heap.push(Entry(0.0, tie, st));
+    }
+
+    /// The grid order of state `st` (see [`Entry`]).
+    fn tie(&self, st: u32) -> u64 {
+        self.g.vertex(st >> 1).key() << 1 | (st & 1) as u64
     }
 
     fn is_settled(&self, st: u32) -> bool {
@@ -165,7 +176,7 @@ impl<'a, 'g> Search<'a, 'g> {
 
     /// Pops and settles the nearest state not yet settled.
     fn pop(&mut self) -> Option<(f64, u32)> {
-        while let Some(Entry(d, st)) = self.heap.pop() {
+        while let Some(Entry(d, _, st)) = self.heap.pop() {
             let sc = &mut self.g.scratch.mm;
             if sc.settled[st as usize] != self.gen {
                 sc.settled[st as usize] = self.gen;
@@ -204,7 +215,8 @@ impl<'a, 'g> Search<'a, 'g> {
                 sc.dist[ns as usize] = nd;
                 sc.pred[ns as usize] = st;
                 sc.source[ns as usize] = sc.source[st as usize];
-                self.heap.push(Entry(nd, ns));
+                let tie = self.tie(ns);
+                self.heap.push(Entry(nd, tie, ns));
             }
         }
     }
