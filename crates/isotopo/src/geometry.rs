@@ -4,7 +4,7 @@
 //! needs. For lengths in millimetres each vertex sits where the linear interpolant of the two
 //! samples reaches the isovalue (as the mesh's vertices do), mapped through the file's affine
 //! (spacing and direction). The fractions along the crossing edges are read once, with the
-//! samples, and kept compactly: one byte each, per plane sorted by edge.
+//! samples, and kept compactly: two bytes each, per plane sorted by edge.
 //!
 //! ```text
 //!    a = 10 ---------x------ b = 30      iso 15: x at t = (15 - 10) / (30 - 10) = 0.25
@@ -23,8 +23,8 @@ use crate::volume::{Affine, Samples};
 pub struct EdgeFractions {
     nx: usize,
     /// Per plane z: the edges whose lower end lies in it (x and y edges in the plane, z edges to
-    /// the plane above), keyed `axis << 60 | y · nx + x`, sorted, with their fractions (/ 255).
-    planes: Vec<(Vec<u64>, Vec<u8>)>,
+    /// the plane above), keyed `axis << 60 | y · nx + x`, sorted, with their fractions (/ 65535).
+    planes: Vec<(Vec<u64>, Vec<u16>)>,
 }
 
 impl EdgeFractions {
@@ -52,9 +52,9 @@ impl EdgeFractions {
         let fraction = |a: f64, b: f64| {
             let mut c = [f64::NAN; 8];
             (c[0], c[1]) = (a, b);
-            (crossing(&c, 0, iso) * 255.0).round() as u8
+            (crossing(&c, 0, iso) * 65535.0).round() as u16
         };
-        let mut here: Vec<(u64, u8)> = Vec::new();
+        let mut here: Vec<(u64, u16)> = Vec::new();
         for y in 0..ny {
             for x in 0..nx {
                 let inside = mask.get(x as isize, y as isize);
@@ -70,7 +70,7 @@ impl EdgeFractions {
         }
         self.store(z, here, 0..2);
         if let (Some((bv, bm)), Some(zb)) = (below, z.checked_sub(1)) {
-            let mut down: Vec<(u64, u8)> = Vec::new();
+            let mut down: Vec<(u64, u16)> = Vec::new();
             for y in 0..ny {
                 for x in 0..nx {
                     if bm.get(x as isize, y as isize) != mask.get(x as isize, y as isize) {
@@ -84,9 +84,9 @@ impl EdgeFractions {
     }
 
     /// Merges the edges of the given axes into plane `z`'s list, keeping it sorted.
-    fn store(&mut self, z: usize, mut edges: Vec<(u64, u8)>, axes: std::ops::Range<u64>) {
+    fn store(&mut self, z: usize, mut edges: Vec<(u64, u16)>, axes: std::ops::Range<u64>) {
         let (keys, t) = &mut self.planes[z];
-        let old: Vec<(u64, u8)> = keys
+        let old: Vec<(u64, u16)> = keys
             .iter()
             .copied()
             .zip(t.iter().copied())
@@ -108,7 +108,7 @@ impl EdgeFractions {
         };
         let key = (axis as u64) << 60 | (p[1] as u64 * self.nx as u64 + p[0] as u64);
         match keys.binary_search(&key) {
-            Ok(i) => t[i] as f64 / 255.0,
+            Ok(i) => t[i] as f64 / 65535.0,
             Err(_) => 0.5,
         }
     }

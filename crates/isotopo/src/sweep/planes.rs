@@ -248,7 +248,7 @@ impl MaskVolume {
     }
 
     /// [`MaskVolume::from_reader`], also recording where the surface crosses each grid edge
-    /// (one byte per crossing edge), for lengths in millimetres along the interpolated surface.
+    /// (two bytes per crossing edge, and its key), for lengths in millimetres along the interpolated surface.
     pub fn from_reader_with_fractions(
         reader: &mut dyn SliceReader,
         opts: &SurfaceOptions,
