@@ -19,7 +19,7 @@
 //! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
 //! is checked again on the whole volume at the end.
 
-use crate::closure::{self, base_thickness, Operation};
+use crate::closure::{self, base_thickness, opposite, Operation};
 use crate::error::{Error, Result};
 use crate::geometry::Geometry;
 use crate::loops::search::{FastMap, Graph, GraphCache};
@@ -107,11 +107,12 @@ pub struct Removed {
     pub length: usize,
     pub length_mm: f64,
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
-    /// minimum-cut wall, the margin of the box it was cut in).
+    /// `peeled_box` wall, the margin of the box round the loop it lies in).
     pub thickness: f64,
     /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`,
-    /// `min_cut` (the fewest samples separating the fan's two faces) or `peeled` (the samples near
-    /// the fan thinned by simple samples and cut at one).
+    /// `peeled` (the samples near the fan thinned by simple samples and cut at the one sample
+    /// that cuts the ring the loop goes round) or `peeled_box` (the same in a box round the
+    /// loop).
     pub wall: &'static str,
     /// Samples this closure flipped: how many, and which (original coordinates).
     pub samples_changed: usize,
@@ -206,6 +207,9 @@ const SINGLE_SAMPLE_REACH: f64 = 1.8;
 
 /// Wall half-thicknesses tried beyond the base one before giving up on a loop.
 const EXTRA_THICKNESS: [f64; 3] = [0.0, 0.5, 1.0];
+
+/// The thickest fan wall: the largest base thickness (√3/2) plus the largest extra.
+const MAX_FAN_THICKNESS: f64 = 0.866_025_403_784_438_6 + 1.0;
 
 /// The surface graph's neighbourhoods and the slices' surfels, kept between the steps of the
 /// sweep (measuring from scratch costs ten times more) and brought up to date after each wall.
@@ -350,13 +354,6 @@ fn plan<'l>(
     Ok(allowed)
 }
 
-fn opposite(op: Operation) -> Operation {
-    match op {
-        Operation::Collapse => Operation::Pinch,
-        Operation::Pinch => Operation::Collapse,
-    }
-}
-
 /// Closing a loop around void fills; closing one around material cuts.
 fn operation_for(l: &Loop) -> Operation {
     match l.encloses {
@@ -482,12 +479,12 @@ enum Wall {
     Fan(f64),
     /// One sample near the centroid of a short loop.
     Single([i64; 3]),
-    /// The smallest set of samples separating the fan's two faces within a box this much larger
-    /// than the loop's, with the + face as the source or not.
-    MinCut(i64, bool),
     /// The samples near the fan (within this distance) thinned by simple samples, then cut at
-    /// the k-th sample that can cut them (see [`closure::peel_walls`]).
+    /// the k-th sample that cuts the ring the loop goes round (see [`closure::peel_walls`]).
     Peel(f64, usize),
+    /// The same with every sample of the box round the loop, this much larger than the loop's:
+    /// for a long twisted loop whose fan is far from the disk it bounds.
+    PeelBox(i64, usize),
 }
 
 impl Wall {
@@ -495,8 +492,8 @@ impl Wall {
         match self {
             Wall::Fan(d) => d,
             Wall::Single(_) => SINGLE_SAMPLE_REACH,
-            Wall::MinCut(margin, _) => margin as f64,
             Wall::Peel(d, _) => d,
+            Wall::PeelBox(margin, _) => margin as f64,
         }
     }
 
@@ -504,17 +501,17 @@ impl Wall {
         match self {
             Wall::Fan(_) => "fan",
             Wall::Single(_) => "single_sample",
-            Wall::MinCut(..) => "min_cut",
             Wall::Peel(..) => "peeled",
+            Wall::PeelBox(..) => "peeled_box",
         }
     }
 }
 
-/// Margins of the boxes minimum-cut walls are cut in, tried in turn.
-const MIN_CUT_MARGINS: [i64; 3] = [2, 4, 8];
-
 /// The walls tried across a loop, in order: fans of growing thickness; for a short loop round a
-/// corner or edge contact, single samples (one may do); then minimum cuts in growing boxes.
+/// corner or edge contact, single samples (one may do); then walls peeled down to the one sample
+/// that cuts the ring the loop goes round, in regions near the fan, then in boxes round the
+/// loop (see [`closure::peel_walls`]: these always remove a handle and split nothing; the
+/// regions grow until one holds a cut).
 fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
     let mut out: Vec<Wall> = EXTRA_THICKNESS
         .iter()
@@ -527,21 +524,107 @@ fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
                 .map(Wall::Single),
         );
     }
-    let big = (lp.length as i64 / 4).max(MIN_CUT_MARGINS[MIN_CUT_MARGINS.len() - 1]);
-    for margin in MIN_CUT_MARGINS.into_iter().chain((big > 8).then_some(big)) {
-        out.extend([Wall::MinCut(margin, true), Wall::MinCut(margin, false)]);
-    }
     for d in PEEL_REACH {
         out.extend((0..PEEL_CUTS).map(|k| Wall::Peel(d, k)));
+    }
+    let wide = (lp.length as i64 / 4).max(2 * PEEL_BOX_MARGIN);
+    for margin in [PEEL_BOX_MARGIN, wide] {
+        out.extend((0..PEEL_CUTS).map(|k| Wall::PeelBox(margin, k)));
     }
     out
 }
 
 /// Samples of a peeled region tried as the cut, nearest the loop's centroid first.
-const PEEL_CUTS: usize = 6;
+const PEEL_CUTS: usize = 8;
 
 /// Distances from the fan of the regions peeled, tried in turn.
-const PEEL_REACH: [f64; 2] = [1.5, 3.0];
+const PEEL_REACH: [f64; 3] = [1.5, 3.0, 5.0];
+
+/// Margin of the first box round the loop peeled whole (the second: a quarter of the loop).
+const PEEL_BOX_MARGIN: i64 = 2;
+
+/// Samples a box peeled whole may hold (beyond, the box is not tried: peeling costs about a
+/// microsecond per sample).
+const MAX_PEEL_BOX: usize = 1 << 20;
+
+/// The samples of the box round the loop's points with a margin, within the volume (none if
+/// there are more than [`MAX_PEEL_BOX`]).
+fn box_region(vol: &MaskVolume, points: &[[f64; 3]], margin: i64) -> (Vec<[i64; 3]>, BBox) {
+    let mut b = BBox::EMPTY;
+    for p in points {
+        b.include(p.map(|x| x.floor() as i64 - margin));
+        b.include(p.map(|x| x.ceil() as i64 + margin));
+    }
+    let dims = vol.dims.map(|n| n as i64);
+    let lo: [i64; 3] = std::array::from_fn(|k| b.min[k].max(0));
+    let hi: [i64; 3] = std::array::from_fn(|k| b.max[k].min(dims[k] - 1));
+    let size: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+    if size as usize > MAX_PEEL_BOX {
+        return (Vec::new(), b);
+    }
+    let mut out = Vec::new();
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                out.push([x, y, z]);
+            }
+        }
+    }
+    (out, b)
+}
+
+/// Where a peeled wall across the loop looks for the ring it cuts: the box of the loop and its
+/// partner (which runs round that ring), with a margin (without a partner, a quarter of the
+/// loop), and the peeled region's box.
+fn peel_target<'a>(
+    points: &'a [[f64; 3]],
+    partner: &[Vertex],
+    length: usize,
+    region: BBox,
+) -> closure::PeelTarget<'a> {
+    let margin = if partner.is_empty() {
+        (length as i64 / 4).max(PEEL_RING_MARGIN)
+    } else {
+        PEEL_RING_MARGIN
+    };
+    let mut b = BBox::EMPTY;
+    for p in points {
+        b.include(p.map(|x| x.floor() as i64));
+        b.include(p.map(|x| x.ceil() as i64));
+    }
+    for v in partner {
+        b.include(v.p);
+        b.include(v.end());
+    }
+    let (mut lo, mut hi) = (b.min.map(|x| x - margin), b.max.map(|x| x + margin));
+    if region != BBox::EMPTY {
+        lo = std::array::from_fn(|k| lo[k].min(region.min[k]));
+        hi = std::array::from_fn(|k| hi[k].max(region.max[k]));
+    }
+    closure::PeelTarget {
+        loop_points: points,
+        lo,
+        hi,
+    }
+}
+
+/// Where a peeled wall is wanted: where the loop's partner crosses it (the partner, pushed off
+/// the surface, is the ring the wall must cut), else the loop's centroid. The region is peeled
+/// towards it, and cuts are tried nearest it first.
+fn peel_centre(points: &[[f64; 3]], partner: &[Vertex]) -> [f64; 3] {
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let crossing = points
+        .iter()
+        .flat_map(|&p| partner.iter().map(move |v| (d2(p, v.midpoint()), p)))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    match crossing {
+        Some((_, p)) => p,
+        None => closure::centroid(points),
+    }
+}
+
+/// Margin of the box round a loop and its partner where a peeled wall's ring is looked for.
+const PEEL_RING_MARGIN: i64 = 3;
 
 /// Tries the walls across `lp` by each of `ops` until one is kept (see [`closure::close`]).
 fn close_loop(
@@ -554,33 +637,63 @@ fn close_loop(
     refused: &mut usize,
 ) -> Option<(closure::Applied, Wall)> {
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
+    let centre = peel_centre(&points, partner);
     let mut peeled: Vec<Vec<[i64; 3]>> = Vec::new();
+    // The samples near the fan, gathered once as far as the walls tried so far need.
+    let mut near: Option<closure::NearFan> = None;
+    let mut near_fan = |d: f64| -> Vec<[i64; 3]> {
+        if near.as_ref().is_none_or(|n| n.reach < d) {
+            // Fans need up to their thickest; peeled regions, the widest reach at once.
+            let reach = if d <= MAX_FAN_THICKNESS {
+                MAX_FAN_THICKNESS
+            } else {
+                PEEL_REACH[PEEL_REACH.len() - 1]
+            };
+            near = Some(closure::NearFan::new(&points, reach.max(d)));
+        }
+        near.as_ref().expect("set above").within(d)
+    };
     for &op in ops {
         for w in walls_for(lp, op, conn) {
             let samples = match w {
-                Wall::Fan(d) => closure::wall(&points, d),
+                Wall::Fan(d) => near_fan(d),
                 Wall::Single([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
                 Wall::Single(q) => vec![q],
-                Wall::MinCut(margin, plus) => {
-                    match closure::min_cut_wall(vol, conn, &lp.vertices, op, margin, plus) {
-                        Some(x) => x,
+                // Peeled once per region; its cuts are tried in turn.
+                Wall::Peel(_, k) | Wall::PeelBox(_, k) if k > 0 => match peeled.get(k) {
+                    Some(x) => x.clone(),
+                    None => continue,
+                },
+                Wall::Peel(d, _) => {
+                    let region = near_fan(d);
+                    let target = peel_target(&points, partner, lp.length, BBox::EMPTY);
+                    peeled =
+                        closure::peel_walls(vol, conn, &region, centre, op, &target, PEEL_CUTS);
+                    match peeled.first() {
+                        Some(x) => x.clone(),
                         None => continue,
                     }
                 }
-                Wall::Peel(d, k) => {
-                    // Peeled once per distance; its cuts are tried in turn.
-                    if k == 0 {
-                        let region = closure::wall(&points, d);
-                        let centre = closure::centroid(&points);
-                        peeled = closure::peel_walls(vol, conn, &region, centre, op, PEEL_CUTS);
-                    }
-                    match peeled.get(k) {
+                Wall::PeelBox(margin, _) => {
+                    let (region, b) = box_region(vol, &points, margin);
+                    let target = peel_target(&points, partner, lp.length, b);
+                    peeled =
+                        closure::peel_walls(vol, conn, &region, centre, op, &target, PEEL_CUTS);
+                    match peeled.first() {
                         Some(x) => x.clone(),
                         None => continue,
                     }
                 }
             };
-            match closure::close(vol, conn, &lp.vertices, partner, op, samples, graph) {
+            let attempt = closure::Attempt {
+                lp: &lp.vertices,
+                partner,
+                op,
+                wall: samples,
+                certified: matches!(w, Wall::Peel(..) | Wall::PeelBox(..)),
+            };
+            let r = closure::close(vol, conn, attempt, graph);
+            match r {
                 Some(applied) => return Some((applied, w)),
                 None => *refused += 1,
             }

@@ -211,7 +211,7 @@ fn check(
     // 4. Every changed sample was flipped by a wall, and lies where that kind of wall reaches
     // from its own loop: a fan wall (or a peeled one, cut from the fan's samples) within its
     // thickness of the fan, whose points are within a quarter of the loop's length of it; a
-    // single sample within its reach of the loop's centroid; a minimum cut inside its box.
+    // single sample within its reach of the loop's centroid; a wall peeled in a box inside it.
     let mut flipped_by: std::collections::HashMap<[i64; 3], usize> = Default::default();
     for (i, r) in out.removed.iter().enumerate() {
         for &q in &r.samples {
@@ -228,7 +228,7 @@ fn check(
             ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2) + (p[2] - a[2]).powi(2)).sqrt()
         };
         let ok = match r.wall {
-            "min_cut" => (0..3).all(|k| {
+            "peeled_box" => (0..3).all(|k| {
                 let lo = r.points.iter().map(|a| a[k]).fold(f64::INFINITY, f64::min);
                 let hi = r
                     .points
@@ -590,11 +590,11 @@ fn no_loop_below_tau_hides_between_handles() {
 
 /// Walls the fan cannot close: in these random volumes every fan wall across the loops of one
 /// handle is refused (it cuts off a spur or touches another part of the surface); the code that
-/// stopped at fan walls kept each as `closure_failed`. Minimum-cut and peeled walls close them.
+/// stopped at fan walls kept each as `closure_failed`. Peeled walls close them.
 #[test]
 fn walls_the_fan_cannot_close_are_closed_otherwise() {
     // (case of the generator below, connectivity, axis, tau): the closure failures of the code
-    // before minimum-cut walls.
+    // before peeled walls.
     let failing = [
         (46u64, Connectivity::Six, Axis::Y, 20.0),
         (180, Connectivity::TwentySix, Axis::X, 20.0),

@@ -22,11 +22,9 @@
 //! the wall is one connected piece (so the surface does not fall apart, and the solid keeps its
 //! components and cavities). Otherwise the volume is restored.
 
-mod mincut;
 mod peel;
 
-pub use mincut::min_cut_wall;
-pub use peel::{peel_walls, topological_numbers};
+pub use peel::{peel_walls, topological_numbers, PeelTarget};
 
 use crate::loops::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
 use crate::surface::{vertex_of, PieceRef, Vertex};
@@ -52,7 +50,7 @@ impl Operation {
 }
 
 /// The other operation.
-pub(crate) fn opposite(op: Operation) -> Operation {
+pub fn opposite(op: Operation) -> Operation {
     match op {
         Operation::Collapse => Operation::Pinch,
         Operation::Pinch => Operation::Collapse,
@@ -141,29 +139,59 @@ pub fn centroid(points: &[[f64; 3]]) -> [f64; 3] {
 }
 
 /// Samples (volume-local coordinates) within `d` of the fan spanning the closed polyline
-/// `points` about its centroid.
+/// `points` about its centroid, sorted.
 pub fn wall(points: &[[f64; 3]], d: f64) -> Vec<[i64; 3]> {
-    let c = centroid(points);
-    let d2 = d * d + 1e-9;
-    let mut out: FastMap<[i64; 3], ()> = FastMap::default();
-    for i in 0..points.len() {
-        let (a, b) = (points[i], points[(i + 1) % points.len()]);
-        let lo: [i64; 3] = std::array::from_fn(|k| (a[k].min(b[k]).min(c[k]) - d).floor() as i64);
-        let hi: [i64; 3] = std::array::from_fn(|k| (a[k].max(b[k]).max(c[k]) + d).ceil() as i64);
-        for z in lo[2]..=hi[2] {
-            for y in lo[1]..=hi[1] {
-                for x in lo[0]..=hi[0] {
-                    let p = [x as f64, y as f64, z as f64];
-                    if point_triangle_dist2(p, c, a, b) <= d2 {
-                        out.insert([x, y, z], ());
+    NearFan::new(points, d).within(d)
+}
+
+/// The samples near a loop's spanning fan with their distances to it, computed once for the
+/// several walls (of growing thickness) tried across one loop.
+pub struct NearFan {
+    /// How far from the fan the samples were gathered.
+    pub reach: f64,
+    samples: Vec<([i64; 3], f64)>,
+}
+
+impl NearFan {
+    /// The samples within `reach` of the fan spanning the closed polyline `points`.
+    pub fn new(points: &[[f64; 3]], reach: f64) -> NearFan {
+        let c = centroid(points);
+        let r2 = reach * reach + 1e-9;
+        let mut near: FastMap<[i64; 3], f64> = FastMap::default();
+        for i in 0..points.len() {
+            let (a, b) = (points[i], points[(i + 1) % points.len()]);
+            let lo: [i64; 3] =
+                std::array::from_fn(|k| (a[k].min(b[k]).min(c[k]) - reach).floor() as i64);
+            let hi: [i64; 3] =
+                std::array::from_fn(|k| (a[k].max(b[k]).max(c[k]) + reach).ceil() as i64);
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let p = [x as f64, y as f64, z as f64];
+                        let d2 = point_triangle_dist2(p, c, a, b);
+                        if d2 <= r2 {
+                            let e = near.entry([x, y, z]).or_insert(d2);
+                            *e = e.min(d2);
+                        }
                     }
                 }
             }
         }
+        let mut samples: Vec<([i64; 3], f64)> = near.into_iter().collect();
+        samples.sort_by_key(|s| s.0);
+        NearFan { reach, samples }
     }
-    let mut v: Vec<[i64; 3]> = out.into_keys().collect();
-    v.sort();
-    v
+
+    /// The samples within `d` (at most the reach) of the fan, sorted.
+    pub fn within(&self, d: f64) -> Vec<[i64; 3]> {
+        debug_assert!(d <= self.reach);
+        let d2 = d * d + 1e-9;
+        self.samples
+            .iter()
+            .filter(|s| s.1 <= d2)
+            .map(|s| s.0)
+            .collect()
+    }
 }
 
 /// A closure that was kept.
@@ -177,7 +205,7 @@ pub struct Applied {
 }
 
 /// Vertices a connectivity check may visit before it gives up (and the closure is refused).
-const CONNECT_BUDGET: usize = 1 << 26;
+const CONNECT_BUDGET: usize = 1 << 22;
 
 /// Cubes (lower corners) with a corner among the given samples.
 fn touched_cubes(samples: &[[i64; 3]]) -> Vec<[i64; 3]> {
@@ -283,12 +311,14 @@ fn joined(
     }
     let mut budget = 1 << 10;
     loop {
-        match g.reach(from, others, None, &Everywhere, budget) {
+        let (reach, left) = g.reach_targets(from, others, None, &Everywhere, budget);
+        match reach {
             Reach::Reached => return true,
             Reach::Exhausted => return false,
             Reach::Budget => {}
         }
-        for &p in others {
+        // From the targets not met yet (a few: each such search may cost the budget).
+        for &p in left.iter().take(REVERSE_SEARCHES) {
             if g.reach(&[p], from, Some(1), &Everywhere, budget) == Reach::Exhausted {
                 return false;
             }
@@ -299,6 +329,9 @@ fn joined(
         budget *= 4;
     }
 }
+
+/// Targets a connectivity check searches back from, at each budget.
+const REVERSE_SEARCHES: usize = 8;
 
 /// Sets the samples to `inside` and keeps the graph's neighbourhoods up to date.
 fn flip(
@@ -340,9 +373,23 @@ pub fn single_sample_walls(lp: &[Vertex], reach: f64) -> Vec<[i64; 3]> {
     out.into_iter().map(|(_, q)| q).collect()
 }
 
-/// Writes `wall` (samples, volume-local; [`wall`] across the loop's fan, or single samples) for
-/// the loop `lp` (its vertices, volume-local) into the mask and keeps it if it removes handles of
-/// the loop's surface only, and at least one; else restores the mask.
+/// A wall to try across a loop (all in the volume's local coordinates).
+pub struct Attempt<'a> {
+    /// The loop, and a loop crossing it once (empty if none is known).
+    pub lp: &'a [Vertex],
+    pub partner: &'a [Vertex],
+    pub op: Operation,
+    /// The samples to set to `op`'s side: [`wall`] across the loop's fan, single samples, or a
+    /// peeled wall.
+    pub wall: Vec<[i64; 3]>,
+    /// Is the wall known to remove one handle and change no component or cavity ([`peel_walls`]:
+    /// simple flips but one, which cuts a ring)? Then it may also reshape other surfaces
+    /// nearby (their topology cannot change), and only the count of handles is checked.
+    pub certified: bool,
+}
+
+/// Writes the attempt's wall into the mask and keeps it if it removes handles of the loop's
+/// surface only, and at least one; else restores the mask.
 ///
 /// Why the checks suffice: cubes with no flipped corner keep their pieces, and so do pieces of
 /// touched cubes whose corners and loops stay the same; only the others change. If some pieces
@@ -355,12 +402,16 @@ pub fn single_sample_walls(lp: &[Vertex], reach: f64) -> Vec<[i64; 3]> {
 pub fn close(
     vol: &mut MaskVolume,
     conn: Connectivity,
-    lp: &[Vertex],
-    partner: &[Vertex],
-    op: Operation,
-    wall: Vec<[i64; 3]>,
+    attempt: Attempt,
     cache: &mut GraphCache,
 ) -> Option<Applied> {
+    let Attempt {
+        lp,
+        partner,
+        op,
+        wall,
+        certified,
+    } = attempt;
     let target = op.target();
     let [nu, nv, nw] = vol.dims.map(|x| x as i64);
     let changed: Vec<[i64; 3]> = wall
@@ -408,7 +459,7 @@ pub fn close(
         return None;
     }
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
-    let same_surface = joined(&mut g, lp, &old_pieces, &near, &along);
+    let same_surface = certified || joined(&mut g, lp, &old_pieces, &near, &along);
     *cache = g.into_cache();
     if !same_surface {
         debug_refusal("the wall touches another surface", lp, op, &changed);
@@ -416,7 +467,8 @@ pub fn close(
     }
     flip(vol, cache, &changed, target, conn);
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
-    let ok = !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near, &along);
+    let ok = certified
+        || !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near, &along);
     *cache = g.into_cache();
     if !ok {
         debug_refusal("the surface would fall apart", lp, op, &changed);

@@ -1,14 +1,16 @@
-//! A wall grown one sample at a time, with the topology watched at each: for the loops no wall
-//! of the fan or the minimum cut closes cleanly (round a long twisted loop both touch other
-//! parts of the surface).
+//! A wall grown one sample at a time, with the topology watched at each: for the loops no fan
+//! wall closes cleanly (round a long twisted loop the fan touches other parts of the surface).
 //!
-//! Within a region across the loop (the samples near its spanning disk), the side a closure
-//! changes is thinned by *simple* samples only: flipping a simple sample changes no topology
-//! (Bertrand and Malandain's topological numbers, in its 26-neighbourhood, are both 1). What is
-//! left of that side in the region is a skeleton; flipping one of its samples whose
-//! neighbourhood holds two pieces of the side and one of the other is the single change that
-//! cuts a bar (or, filling, closes a tunnel). Then every thinned sample whose flip back is
-//! simple again is flipped back, so that the wall keeps only what the change needs.
+//! Within a region across the loop (the samples near its spanning fan, or a whole box round
+//! it), the side a closure changes is thinned by *simple* samples only: flipping a simple sample
+//! changes no topology (Bertrand and Malandain's topological numbers, in its 26-neighbourhood,
+//! are both 1). What is left of that side in the region is a skeleton. A sample of it with two
+//! pieces of its side beside it (and one of the other) is where a single flip cuts a thread of
+//! the side. That flip removes one handle and nothing else exactly when the two pieces stay
+//! joined elsewhere: the thread is part of a *ring* of the side, and the ring the loop goes
+//! round when it links the loop ([`Ring`]: a search through the side, then a linking number).
+//! Then every thinned sample whose flip back is simple again is flipped back, so that the wall
+//! keeps only what the change needs.
 //!
 //! ```text
 //!    bar across the region     thinned to a thread      cut at one sample, the rest put back
@@ -17,7 +19,9 @@
 //!     # # # # # # #             # # # . # # #            # # # . # # #
 //! ```
 //!
-//! The result is verified by [`super::close`] like any other wall.
+//! So every wall returned removes a handle round which the loop goes and changes no component
+//! or cavity, whatever the shape: as long as the region holds a cut of that ring, the closure
+//! cannot fail. It is still verified by [`super::close`] like any other wall.
 
 use super::Operation;
 use crate::loops::search::FastMap;
@@ -79,27 +83,39 @@ fn neighbourhood() -> &'static Neighbourhood {
 /// Components of the samples `member` of the neighbourhood: with 6-adjacency, those of the
 /// 18-neighbourhood that touch a face neighbour (the geodesic count); with 26, all.
 fn components(member: &[bool; 26], six: bool) -> usize {
+    label_pieces(member, six, |_, _| {})
+}
+
+/// Walks the components counted by [`components`], calling `each(piece, k)` for every neighbour
+/// `k` (an index into the offsets) of each; returns how many there are.
+fn label_pieces(member: &[bool; 26], six: bool, mut each: impl FnMut(usize, usize)) -> usize {
     let nb = neighbourhood();
+    let allowed = |k: usize| member[k] && (!six || nb.in18[k]);
     let mut seen = [false; 26];
+    let mut stack = [0u8; 26];
     let mut count = 0;
     for start in 0..26 {
-        let allowed = |k: usize| member[k] && (!six || nb.in18[k]);
         if seen[start] || !allowed(start) || (six && !nb.face[start]) {
             continue;
         }
-        count += 1;
-        let mut stack = vec![start];
         seen[start] = true;
-        while let Some(k) = stack.pop() {
+        stack[0] = start as u8;
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let k = stack[top] as usize;
+            each(count, k);
             let adj = if six { &nb.adj6[k] } else { &nb.adj26[k] };
             for &j in adj {
                 let j = j as usize;
                 if !seen[j] && allowed(j) {
                     seen[j] = true;
-                    stack.push(j);
+                    stack[top] = j as u8;
+                    top += 1;
                 }
             }
         }
+        count += 1;
     }
     count
 }
@@ -124,15 +140,26 @@ pub fn topological_numbers(vol: &MaskVolume, q: [i64; 3], conn: Connectivity) ->
     )
 }
 
+/// The loop a peeled wall closes, and the box within which the ring it goes round is looked
+/// for (see [`Ring`]).
+pub struct PeelTarget<'a> {
+    /// The loop's points (edge midpoints, volume-local), closed.
+    pub loop_points: &'a [[f64; 3]],
+    /// Inclusive corners of the box: the loop's and its partner's, with a margin.
+    pub lo: [i64; 3],
+    pub hi: [i64; 3],
+}
+
 /// Walls for closing the loop by `op` within `region` (see the module notes), one per sample of
-/// the thinned region whose flip cuts (or fills) it, nearest `centre` first, at most `most` of
-/// them. The volume is left as it was.
+/// the thinned region whose flip cuts (or fills) the ring the loop goes round, nearest `centre`
+/// first, at most `most` of them. The volume is left as it was.
 pub fn peel_walls(
     vol: &mut MaskVolume,
     conn: Connectivity,
     region: &[[i64; 3]],
     centre: [f64; 3],
     op: Operation,
+    target: &PeelTarget,
     most: usize,
 ) -> Vec<Vec<[i64; 3]>> {
     let dims = vol.dims.map(|n| n as i64);
@@ -155,39 +182,32 @@ pub fn peel_walls(
     };
     let thinned = thin(vol, conn, &cand, side);
     let is_thinned: FastMap<[i64; 3], ()> = thinned.iter().map(|&q| (q, ())).collect();
-    // The single change: a sample whose neighbourhood holds two pieces of the side.
+    // The single change: a sample whose neighbourhood holds two pieces of the side, joined
+    // round the loop (so the flip cuts the ring, and splits nothing).
     let splits = |t: (usize, usize)| match op {
         Operation::Pinch => t == (2, 1),
         Operation::Collapse => t == (1, 2),
     };
+    let mut ring = Ring::new(target, side, conn);
     let cuts: Vec<[i64; 3]> = cand
         .iter()
         .rev()
         .copied()
         .filter(|q| !is_thinned.contains_key(q) && splits(topological_numbers(vol, *q, conn)))
+        .take(MAX_RING_SEARCHES)
+        .filter(|&q| ring.cuts(vol, q))
         .take(most)
         .collect();
     let mut walls = Vec::new();
     for c in cuts {
         set(vol, c, !side);
-        // Put back what is simple to put back.
-        let mut kept: Vec<[i64; 3]> = thinned.clone();
-        let mut back: Vec<[i64; 3]> = Vec::new();
-        loop {
-            let mut any = false;
-            kept.retain(|&q| {
-                let simple = topological_numbers(vol, q, conn) == (1, 1);
-                if simple {
-                    set(vol, q, side);
-                    back.push(q);
-                    any = true;
-                }
-                !simple
-            });
-            if !any {
-                break;
-            }
-        }
+        let back = put_back(vol, conn, &thinned, side);
+        let back_set: FastMap<[i64; 3], ()> = back.iter().map(|&q| (q, ())).collect();
+        let mut kept: Vec<[i64; 3]> = thinned
+            .iter()
+            .copied()
+            .filter(|q| !back_set.contains_key(q))
+            .collect();
         // Back to the thinned state for the next cut.
         for &q in &back {
             set(vol, q, !side);
@@ -202,23 +222,242 @@ pub fn peel_walls(
     walls
 }
 
-/// Flips the samples of `cand` (all of state `side`) that are simple, in turn, until none is
-/// left; returns those flipped.
+/// Cut samples looked at (each with a search in the box) per peeled region.
+const MAX_RING_SEARCHES: usize = 64;
+
+/// Samples a ring search may label (the box is skipped beyond: 16 MiB of labels).
+const MAX_RING_BOX: usize = 1 << 22;
+
+/// Tells whether flipping a sample cuts a ring of its side that the loop goes round:
+///
+/// ```text
+///        side (e.g. the void of a tunnel)          q has two pieces A, B of its side beside
+///      +-------------------------------+           it; a path A ~> B of the side avoiding q,
+///      |   A  q  B     loop a round q  |           closed through q, is a ring. If it links
+///      |   ^      |    (its fan)       |           the loop, flipping q cuts the ring the
+///      |   +------+  path round        |           loop goes round, and since A and B stay
+///      +-------------------------------+           joined the side does not fall apart.
+/// ```
+///
+/// Flipping such a q (in a region thinned by simple samples) removes exactly one handle and
+/// changes no component or cavity; the path is searched within the target's box only.
+struct Ring<'a> {
+    target: &'a PeelTarget<'a>,
+    side: bool,
+    six: bool,
+    size: [usize; 3],
+    /// Per box cell: generation it was reached in, and the cell it was reached from.
+    stamp: Vec<u32>,
+    from: Vec<u32>,
+    generation: u32,
+}
+
+impl<'a> Ring<'a> {
+    fn new(target: &'a PeelTarget<'a>, side: bool, conn: Connectivity) -> Ring<'a> {
+        let size: [usize; 3] =
+            std::array::from_fn(|k| (target.hi[k] - target.lo[k] + 1).max(0) as usize);
+        Ring {
+            target,
+            side,
+            // Inside samples are 6-adjacent with connectivity 6, outside ones with 26.
+            six: side == (conn == Connectivity::Six),
+            size,
+            stamp: Vec::new(),
+            from: Vec::new(),
+            generation: 0,
+        }
+    }
+
+    fn cell(&self, q: [i64; 3]) -> Option<usize> {
+        let r: [i64; 3] = std::array::from_fn(|k| q[k] - self.target.lo[k]);
+        (0..3)
+            .all(|k| r[k] >= 0 && (r[k] as usize) < self.size[k])
+            .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
+    }
+
+    fn sample(&self, c: usize) -> [i64; 3] {
+        let (x, y, z) = (
+            c % self.size[0],
+            c / self.size[0] % self.size[1],
+            c / (self.size[0] * self.size[1]),
+        );
+        [
+            self.target.lo[0] + x as i64,
+            self.target.lo[1] + y as i64,
+            self.target.lo[2] + z as i64,
+        ]
+    }
+
+    /// Does flipping `q` cut a ring of the side that the loop goes round (see the type)?
+    /// Searched from both pieces at once, the smaller front first: a piece closed off within
+    /// the box (the flip would split the side) is done with at the cost of that piece.
+    fn cuts(&mut self, vol: &MaskVolume, q: [i64; 3]) -> bool {
+        let cells = self.size.iter().product::<usize>();
+        let Some(qc) = self.cell(q) else {
+            return false;
+        };
+        if cells > MAX_RING_BOX {
+            return false;
+        }
+        if self.stamp.len() < cells {
+            self.stamp = vec![0; cells];
+            self.from = vec![0; cells];
+        }
+        // Two stamps per search: reached from piece 0, from piece 1.
+        self.generation += 2;
+        let stamps = [self.generation, self.generation + 1];
+        let nb = neighbourhood();
+        let member: [bool; 26] = std::array::from_fn(|k| {
+            let d = nb.offsets[k];
+            vol.get(q[0] + d[0], q[1] + d[1], q[2] + d[2]) == self.side
+        });
+        let mut piece = [usize::MAX; 26];
+        if label_pieces(&member, self.six, |p, k| piece[k] = p) != 2 {
+            return false;
+        }
+        let mut fronts = [
+            std::collections::VecDeque::new(),
+            std::collections::VecDeque::new(),
+        ];
+        for k in 0..26 {
+            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(add(q, nb.offsets[k]))) {
+                self.stamp[c] = stamps[p];
+                self.from[c] = qc as u32;
+                fronts[p].push_back(c);
+            }
+        }
+        let steps: &[[i64; 3]] = if self.six { &FACES } else { &nb.offsets };
+        loop {
+            let i = usize::from(fronts[1].len() < fronts[0].len());
+            let Some(c) = fronts[i].pop_front() else {
+                return false;
+            };
+            let p = self.sample(c);
+            for d in steps {
+                let r = add(p, *d);
+                let Some(rc) = self.cell(r).filter(|&rc| rc != qc) else {
+                    continue;
+                };
+                if self.stamp[rc] == stamps[1 - i] {
+                    return self.links(qc, c, rc);
+                }
+                if self.stamp[rc] != stamps[i] && vol.get(r[0], r[1], r[2]) == self.side {
+                    self.stamp[rc] = stamps[i];
+                    self.from[rc] = c as u32;
+                    fronts[i].push_back(rc);
+                }
+            }
+        }
+    }
+
+    /// The samples from `c` back to q (excluded) along the search's steps.
+    fn trace(&self, qc: usize, mut c: usize) -> Vec<[i64; 3]> {
+        let mut out = Vec::new();
+        while c != qc {
+            out.push(self.sample(c));
+            c = self.from[c] as usize;
+        }
+        out
+    }
+
+    /// Does the ring q ~> a, b ~> q (the two fronts met across the step a -> b) link the loop?
+    fn links(&self, qc: usize, a: usize, b: usize) -> bool {
+        let mut ring = self.trace(qc, a);
+        ring.reverse();
+        ring.extend(self.trace(qc, b));
+        ring.push(self.sample(qc));
+        // Off the grid a little, so that no segment of the ring meets one of the loop.
+        let nudge = [1.1e-3, 2.3e-3, 3.7e-3];
+        let ring: Vec<[f64; 3]> = ring
+            .iter()
+            .map(|p| std::array::from_fn(|k| p[k] as f64 + nudge[k]))
+            .collect();
+        crate::loops::linking_number(&ring, self.target.loop_points).abs() > 0.5
+    }
+}
+
+/// The six face neighbours.
+const FACES: [[i64; 3]; 6] = [
+    [-1, 0, 0],
+    [1, 0, 0],
+    [0, -1, 0],
+    [0, 1, 0],
+    [0, 0, -1],
+    [0, 0, 1],
+];
+
+fn add(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [a[0] + d[0], a[1] + d[1], a[2] + d[2]]
+}
+
+/// Flips the samples of `cand` (all of state `side`) that are simple, in their order, until none
+/// is left; returns those flipped. A sample's simplicity changes only when a neighbour flips, so
+/// after the first pass only the neighbours of flipped samples are looked at again.
 fn thin(vol: &mut MaskVolume, conn: Connectivity, cand: &[[i64; 3]], side: bool) -> Vec<[i64; 3]> {
+    let index: FastMap<[i64; 3], usize> = cand.iter().enumerate().map(|(i, &q)| (q, i)).collect();
     let mut flipped: Vec<[i64; 3]> = Vec::new();
-    let mut done: FastMap<[i64; 3], ()> = FastMap::default();
+    let mut done = vec![false; cand.len()];
+    let mut dirty = vec![true; cand.len()];
     loop {
         let mut any = false;
-        for &q in cand {
-            if !done.contains_key(&q) && topological_numbers(vol, q, conn) == (1, 1) {
+        for (i, &q) in cand.iter().enumerate() {
+            if done[i] || !dirty[i] {
+                continue;
+            }
+            dirty[i] = false;
+            if topological_numbers(vol, q, conn) == (1, 1) {
                 vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !side);
                 flipped.push(q);
-                done.insert(q, ());
+                done[i] = true;
                 any = true;
+                mark_neighbours(&index, q, &mut dirty);
             }
         }
         if !any {
             return flipped;
+        }
+    }
+}
+
+/// Marks the samples of `index` next to `q` as to be looked at again.
+fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [bool]) {
+    for d in neighbourhood().offsets {
+        if let Some(&j) = index.get(&[q[0] + d[0], q[1] + d[1], q[2] + d[2]]) {
+            dirty[j] = true;
+        }
+    }
+}
+
+/// With the cut made: flips back, in turn, every thinned sample whose flip back is simple,
+/// until none is; returns those flipped back (the volume keeps them flipped back).
+fn put_back(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    thinned: &[[i64; 3]],
+    side: bool,
+) -> Vec<[i64; 3]> {
+    let index: FastMap<[i64; 3], usize> =
+        thinned.iter().enumerate().map(|(i, &q)| (q, i)).collect();
+    let mut back = Vec::new();
+    let mut done = vec![false; thinned.len()];
+    let mut dirty = vec![true; thinned.len()];
+    loop {
+        let mut any = false;
+        for (i, &q) in thinned.iter().enumerate() {
+            if done[i] || !dirty[i] {
+                continue;
+            }
+            dirty[i] = false;
+            if topological_numbers(vol, q, conn) == (1, 1) {
+                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, side);
+                back.push(q);
+                done[i] = true;
+                any = true;
+                mark_neighbours(&index, q, &mut dirty);
+            }
+        }
+        if !any {
+            return back;
         }
     }
 }
@@ -243,33 +482,97 @@ mod tests {
         }
     }
 
-    /// A 3×3 bar, peeled within the slab x = 4 down to its centre and cut there: none of the
-    /// peeled samples can go back without joining the two halves again.
-    #[test]
-    fn peeling_a_thick_bar_cuts_it() {
-        let mut vol = MaskVolume::new([9, 7, 7], Frame::identity());
-        for x in 0..9 {
-            for y in 2..5 {
-                for z in 2..5 {
-                    vol.set(x, y, z, true);
+    /// A square ring of 3×3 section in 14×14×7 (a solid torus), and the loop round its bar at
+    /// x = 6 (edge midpoints round the section y 1..=3, z 2..=4).
+    fn ring_and_loop(closed: bool) -> (MaskVolume, Vec<[f64; 3]>) {
+        let mut vol = MaskVolume::new([14, 14, 7], Frame::identity());
+        for x in 1..13 {
+            for y in 1..13 {
+                let in_hole = (4..10).contains(&x) && (4..10).contains(&y);
+                // Open: the bar opposite the loop is missing, so the ring is a U.
+                let opened = !closed && y >= 10 && (4..10).contains(&x);
+                if !in_hole && !opened {
+                    for z in 2..5 {
+                        vol.set(x, y, z, true);
+                    }
                 }
             }
         }
-        let region: Vec<[i64; 3]> = (1..6)
-            .flat_map(|y| (1..6).map(move |z| [4, y, z]))
+        let mut pts = Vec::new();
+        pts.extend((2..5).map(|z| [6.0, 0.5, z as f64]));
+        pts.extend((1..4).map(|y| [6.0, y as f64, 4.5]));
+        pts.extend((2..5).rev().map(|z| [6.0, 3.5, z as f64]));
+        pts.extend((1..4).rev().map(|y| [6.0, y as f64, 1.5]));
+        (vol, pts)
+    }
+
+    /// The ring's bar, peeled within the slab x = 6 down to its centre and cut there: none of
+    /// the peeled samples can go back without joining the two sides again, so the wall is the
+    /// whole section (a 6-connected bar is only cut by all 9). Once the ring is open (a U), the
+    /// same cut would split the solid in two: no wall.
+    #[test]
+    fn peeling_a_thick_bar_cuts_its_ring_and_never_splits() {
+        for closed in [true, false] {
+            let (mut vol, pts) = ring_and_loop(closed);
+            let before: Vec<bool> = (0..14 * 14 * 7)
+                .map(|i| vol.get(i % 14, i / 14 % 14, i / 196))
+                .collect();
+            let region: Vec<[i64; 3]> = (0..6)
+                .flat_map(|y| (1..6).map(move |z| [6, y, z]))
+                .collect();
+            let target = PeelTarget {
+                loop_points: &pts,
+                lo: [-1, -1, -1],
+                hi: [14, 14, 7],
+            };
+            let walls = peel_walls(
+                &mut vol,
+                Connectivity::Six,
+                &region,
+                [6.0, 2.0, 3.0],
+                Operation::Pinch,
+                &target,
+                4,
+            );
+            let after: Vec<bool> = (0..14 * 14 * 7)
+                .map(|i| vol.get(i % 14, i / 14 % 14, i / 196))
+                .collect();
+            assert_eq!(before, after, "the volume is left as it was");
+            if closed {
+                let wall = walls.first().expect("a cut");
+                assert_eq!(wall.len(), 9, "{wall:?}");
+                assert!(wall.iter().all(|q| q[0] == 6), "{wall:?}");
+            } else {
+                assert!(walls.is_empty(), "{walls:?}");
+            }
+        }
+    }
+
+    /// A loop that does not go round the bar (beside it) links no ring: no wall.
+    #[test]
+    fn a_cut_must_link_the_loop() {
+        let (mut vol, pts) = ring_and_loop(true);
+        let away: Vec<[f64; 3]> = pts
+            .iter()
+            .map(|p| [p[0] + 0.0, p[1] + 20.0, p[2]])
             .collect();
+        let region: Vec<[i64; 3]> = (0..6)
+            .flat_map(|y| (1..6).map(move |z| [6, y, z]))
+            .collect();
+        let target = PeelTarget {
+            loop_points: &away,
+            lo: [-1, -1, -1],
+            hi: [14, 14, 7],
+        };
         let walls = peel_walls(
             &mut vol,
             Connectivity::Six,
             &region,
-            [4.0, 3.0, 3.0],
+            [6.0, 2.0, 3.0],
             Operation::Pinch,
+            &target,
             4,
         );
-        let wall = walls.first().expect("a cut");
-        // Unchanged volume.
-        assert!((0..9).all(|x| vol.get(x, 3, 3)));
-        // The wall is the whole cross-section (a 6-connected bar is only cut by all 9).
-        assert_eq!(wall.len(), 9, "{wall:?}");
+        assert!(walls.is_empty(), "{walls:?}");
     }
 }

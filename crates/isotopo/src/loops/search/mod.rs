@@ -200,6 +200,18 @@ impl<'a> Graph<'a> {
         region: &dyn Region,
         budget: usize,
     ) -> Reach {
+        self.reach_targets(seeds, targets, want, region, budget).0
+    }
+
+    /// [`Graph::reach`], and the targets not reached (on the surface but not met).
+    pub fn reach_targets(
+        &mut self,
+        seeds: &[Vertex],
+        targets: &[Vertex],
+        want: Option<usize>,
+        region: &dyn Region,
+        budget: usize,
+    ) -> (Reach, Vec<Vertex>) {
         let gen = self.scratch.next_generation();
         self.scratch.next_region();
         let mut pending: FastMap<u32, ()> = FastMap::default();
@@ -215,7 +227,7 @@ impl<'a> Graph<'a> {
                 .len()
         {
             // A target that is not on the surface is never reached.
-            return Reach::Exhausted;
+            return (Reach::Exhausted, Vec::new());
         }
         let want = want.unwrap_or(pending.len()).min(pending.len());
         let need_left = pending.len() - want;
@@ -235,21 +247,23 @@ impl<'a> Graph<'a> {
             }
         }
         let mut visited = 0;
-        loop {
+        let outcome = loop {
             if pending.len() <= need_left {
-                return Reach::Reached;
+                break Reach::Reached;
             }
             let Some(i) = queue.pop_front() else {
-                return Reach::Exhausted;
+                break Reach::Exhausted;
             };
             visited += 1;
             if visited > budget {
-                return Reach::Budget;
+                break Reach::Budget;
             }
             for (_, j) in self.steps(region, i) {
                 visit(self, j, &mut queue, &mut pending);
             }
-        }
+        };
+        let left = pending.keys().map(|&i| self.vertex(i)).collect();
+        (outcome, left)
     }
 
     /// Number of `v` (computing its neighbourhood the first time), or `None` if no surface
