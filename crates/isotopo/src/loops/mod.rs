@@ -229,10 +229,17 @@ pub fn map_vertex(v: Vertex, from: &Frame, to: &Frame) -> Vertex {
 pub struct SliceCache {
     conn: Connectivity,
     slices: FastMap<i64, (SliceSurfels, u64)>,
+    /// Contours walked for chained loops, by plane and starting vertex: their vertices' keys
+    /// (a tall cycle's loop is chained through hundreds of them, measured again after every
+    /// wall nearby).
+    contours: FastMap<(i64, u64), std::sync::Arc<FastMap<u64, ()>>>,
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
     bytes: usize,
 }
+
+/// Contours a cache keeps walked (forgotten all at once beyond).
+const MAX_CONTOURS: usize = 1 << 14;
 
 /// Memory the slices of a cache may take between handles (one handle's cycle may need more).
 const SLICE_CACHE_BYTES: usize = 24 << 20;
@@ -250,6 +257,7 @@ impl SliceCache {
         SliceCache {
             conn,
             slices: FastMap::default(),
+            contours: FastMap::default(),
             clock: 0,
             bytes: 0,
         }
@@ -303,8 +311,30 @@ impl SliceCache {
         }
     }
 
-    /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there).
+    /// The keys of the vertices of the contour of plane `w` through `start`, walked once.
+    fn contour(
+        &mut self,
+        top: &mut Graph,
+        start: Vertex,
+        w: i64,
+    ) -> Option<std::sync::Arc<FastMap<u64, ()>>> {
+        if let Some(c) = self.contours.get(&(w, start.key())) {
+            return Some(c.clone());
+        }
+        let walked = crate::sweep::walk_contour(top, start, w)?;
+        let keys: FastMap<u64, ()> = walked.iter().map(|v| (v.key(), ())).collect();
+        let keys = std::sync::Arc::new(keys);
+        if self.contours.len() >= MAX_CONTOURS {
+            self.contours.clear();
+        }
+        self.contours.insert((w, start.key()), keys.clone());
+        Some(keys)
+    }
+
+    /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there), and the
+    /// contours of the planes whose cubes those slices hold.
     pub fn invalidate(&mut self, w0: i64, w1: i64) {
+        self.contours.retain(|&(w, _), _| w + 1 < w0 || w > w1 + 1);
         let mut freed = 0;
         self.slices.retain(|&s, (sl, _)| {
             let keep = s + 1 < w0 || s > w1;
@@ -400,22 +430,17 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
     for k in (1..n).step_by(2) {
         let r = cycle[after(k)];
         // The contour the path through this ribbon ends on, as vertex numbers.
-        let targets: FastMap<u32, ()> = if k + 1 < n {
+        let targets: std::sync::Arc<FastMap<u64, ()>> = if k + 1 < n {
             let c = cycle[after(k + 1)];
-            let contour =
-                crate::sweep::walk_contour(top, l.contour_starts[after(k + 1)], c.level as i64)?;
-            contour
-                .iter()
-                .filter_map(|&v| top.index(v))
-                .map(|i| (i, ()))
-                .collect()
+            cache.contour(top, l.contour_starts[after(k + 1)], c.level as i64)?
         } else {
-            l.cut
-                .iter()
-                .filter(|&&v| v != start)
-                .filter_map(|&v| top.index(v))
-                .map(|i| (i, ()))
-                .collect()
+            std::sync::Arc::new(
+                l.cut
+                    .iter()
+                    .filter(|&&v| v != start)
+                    .map(|v| (v.key(), ()))
+                    .collect(),
+            )
         };
         cache.trim();
         cache.ensure(vol, r.level as i64);
@@ -425,7 +450,7 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
             slice: r.level as i64,
             ribbon: r.local,
         };
-        let mut is_target = |_: &mut Graph, vi: u32| targets.contains_key(&vi);
+        let mut is_target = |g: &mut Graph, vi: u32| targets.contains_key(&g.vertex(vi).key());
         let path = path_to(top, cur, &region, &mut is_target, usize::MAX)?;
         walk.extend_from_slice(&path[1..]);
         cur = *path.last()?;
