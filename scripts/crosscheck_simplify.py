@@ -1,147 +1,191 @@
 #!/usr/bin/env python3
 """The guarantees of `isotopo simplify` on the real volumes, checked with tools that share no
-code with isotopo (nibabel / pynrrd to read, scikit-image for topology, scipy for distances):
+code with isotopo (nibabel / pynrrd to read, scikit-image for topology, numpy for distances):
 
-1. genus after (scikit-image) == handles kept (report) and an `isotopo analyze` of the output
-   finds no handle smaller than tau;
-2. `--tau inf` leaves genus 0 (scikit-image);
-3. b0 and b2 of the solid unchanged (scikit-image, before and after);
-4. only samples near removed loops change: every sample whose value differs lies within the
-   wall's thickness plus a quarter of the loop's length of a closed loop, and its new value is on
-   the other side of the isovalue; all other samples are bit-identical;
-5. simplify run again on its own output changes nothing;
-6. `--fill-only` never sets a sample outside, `--cut-only` never sets one inside.
+1. b0 and b2 of the solid unchanged; genus after (scikit-image) == handles kept (report);
+2. `--tau inf` (both operations) leaves genus 0; a finite tau leaves no handle kept for any
+   reason but its size, and the report is certified (no non-separating loop below tau: the
+   oracle of scripts/crosscheck_loops.py checks the same on crops and random volumes, where it
+   fits); an `isotopo analyze` of the output finds no handle below tau;
+3. with `--fill-only` no sample is set outside, with `--cut-only` none inside, and a handle is
+   kept only for its mode or because no wall of the allowed kind is accepted;
+4. only samples of the walls change, each where its kind of wall reaches from its own loop: a
+   fan wall (or a peeled one) within its thickness of the loop's fan, whose points lie within a
+   quarter of the loop's length of the loop; a wall peeled in a box (`peeled_box`) inside that box; every
+   other sample is bit-identical;
+5. simplify run again on its own output changes nothing.
 
-    python3 scripts/crosscheck_simplify.py [--all]
+Runs (volume, tau, connectivity, mode, axis, inside):
+- always: every volume in ../shared/data at tau 20 and inf (connectivity 6, both, z), but the
+  embryo at inf (see SLOW);
+- a coverage matrix: every volume x tau {inf, 20} x connectivity {6, 26} x mode {both, fill,
+  cut} x axis {z, x}, and --inside below on the Buddha's signed distance; CI runs a slice of it
+  that turns with the commit (MATRIX_PER_RUN runs, from the commit hash), `--matrix all` all of
+  it, `--matrix K` the K-th slice.
 
-Without `--all`, the runs that fit in CI's time; with it, the README's results table too.
+    python3 scripts/crosscheck_simplify.py [--matrix all|K] [--skip-slow]
 """
 
-import json
+import hashlib
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from common import REAL, SHARED, load, run_isotopo, skimage_betti
+from common import REAL, ROOT, SHARED, load, run_isotopo, skimage_betti
 
-# (volume, tau, connectivity, mode)
-CI_RUNS = [
-    ("tooth_103x94x161_uint8.raw", "inf", 6, "both"),
-    ("tooth_103x94x161_uint8.raw", "inf", 26, "both"),
-    ("mni2009a-gm.nii.gz", 20, 6, "both"),
-    ("mni2009a-gm.nii.gz", 8, 6, "fill"),
-    ("mni2009a-gm.nii.gz", 8, 26, "cut"),
-    ("cranium-ct.nii.gz", 20, 6, "both"),
-    ("freesurfer-wm.mgz", "inf", 6, "both"),
-]
-MORE_RUNS = [
-    ("buddha-sdf.nii.gz", 20, 6, "both"),
-    ("bunny-ct.nii.gz", 20, 6, "both"),
-]
+# Runs left out of every CI run, run by `--matrix all` only: the embryo at tau inf takes 150 s
+# and keeps one handle (closure_failed) whose tunnel holds floating specks and whose bar holds a
+# channel of void, so no single wall removes it (issue 13's closing note).
+SLOW = {("embryo.nrrd", "inf")}
+MATRIX_PER_RUN = 8
 
 
-def simplify(path, out, iso, tau, conn, mode, report):
-    args = ["simplify", path, "--iso", iso, "--tau", tau, "--connectivity", conn, "-o", out, "--report", report, "-q"]
+def always_runs():
+    return [(name, tau, 6, "both", "z", "above") for name in REAL for tau in ("20", "inf")
+            if (name, tau) not in SLOW]
+
+
+def matrix_runs():
+    runs = []
+    for name in REAL:
+        for tau in ("inf", "20"):
+            for conn in (6, 26):
+                for mode in ("both", "fill", "cut"):
+                    for axis in ("z", "x"):
+                        runs.append((name, tau, conn, mode, axis, "above"))
+    # A signed distance field the other way round: inside is below the isovalue.
+    runs.append(("buddha-sdf.nii.gz", "20", 6, "both", "z", "below"))
+    return [r for r in runs if r not in always_runs() and (r[0], r[1]) not in SLOW]
+
+
+def matrix_slice(k, runs):
+    n = len(runs)
+    return [runs[(k * MATRIX_PER_RUN + i) % n] for i in range(MATRIX_PER_RUN)]
+
+
+def commit_number():
+    try:
+        h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+        return int(hashlib.sha256(h.encode()).hexdigest(), 16) % 10**6
+    except OSError:
+        return 0
+
+
+def simplify(path, out, iso, tau, conn, mode, axis, inside, report):
+    args = ["simplify", path, "--iso", iso, "--tau", tau, "--connectivity", conn, "--axis", axis,
+            "--inside", inside, "-o", out, "--report", report, "-q"]
     if mode == "fill":
         args.append("--fill-only")
     elif mode == "cut":
         args.append("--cut-only")
     t = time.perf_counter()
     run_isotopo(*args)
+    import json
+
     return time.perf_counter() - t, json.loads(Path(report).read_text())
 
 
-def check(name, tau, conn, mode, tmp):
+def solid(values, iso, inside):
+    return values > iso if inside == "above" else values < iso
+
+
+def wall_reach_failures(r, flipped, what):
+    """Check 4: each changed sample belongs to a wall, within the reach of that wall's loop."""
+    failures = []
+    owner = {}
+    for i, h in enumerate(r["removed"]):
+        for q in h["samples"]:
+            owner[tuple(q)] = i
+    for q in flipped:
+        i = owner.get(tuple(q))
+        if i is None:
+            failures.append(f"{what}: changed sample {q.tolist()} flipped by no wall")
+            break
+        h = r["removed"][i]
+        pts = np.array(h["points"])
+        if h["wall"] == "peeled_box":
+            lo, hi = np.floor(pts.min(0)) - h["thickness"], np.ceil(pts.max(0)) + h["thickness"]
+            ok = bool(np.all(q >= lo) and np.all(q <= hi))
+        else:
+            reach = h["thickness"] + h["length"] / 4 + 1e-6
+            ok = bool((np.linalg.norm(pts - q, axis=1) <= reach).any())
+        if not ok:
+            failures.append(f"{what}: changed sample {q.tolist()} beyond the reach of its {h['wall']} wall "
+                            f"(loop of {h['length']})")
+            break
+    return failures
+
+
+def check(run, tmp):
+    name, tau, conn, mode, axis, inside = run
     path = SHARED / name
     iso = REAL[name]
-    what = f"{name} tau {tau} conn {conn} {mode}"
+    what = f"{name} tau {tau} conn {conn} {mode} axis {axis}{' inside below' if inside == 'below' else ''}"
     failures = []
-    suffix = ".nii.gz" if name.endswith((".raw",)) else "".join(Path(name).suffixes)
+    suffix = ".nii.gz" if name.endswith(".raw") else "".join(Path(name).suffixes)
     out = tmp / f"out{suffix}"
-    secs, r = simplify(path, out, iso, tau, conn, mode, tmp / "report.json")
+    secs, r = simplify(path, out, iso, tau, conn, mode, axis, inside, tmp / "report.json")
 
-    before_values = load(path)
-    after_values = load(out)
-    before = before_values > iso
-    after = after_values > iso
-    b_before = skimage_betti(before, conn)
-    b_after = skimage_betti(after, conn)
-    tau_f = float(tau)
+    before_values, after_values = load(path), load(out)
+    before, after = solid(before_values, iso, inside), solid(after_values, iso, inside)
+    b_before, b_after = skimage_betti(before, conn), skimage_betti(after, conn)
 
-    # 3. b0, b2 unchanged; genus as reported.
+    # 1. b0, b2 unchanged; genus as reported.
     if (b_before[0], b_before[2]) != (b_after[0], b_after[2]):
         failures.append(f"{what}: b0, b2 {b_before[0], b_before[2]} -> {b_after[0], b_after[2]}")
     if b_before[1] != r["genus_before"]:
         failures.append(f"{what}: genus before {r['genus_before']}, oracle {b_before[1]}")
-    # 1. genus after == kept.
     if b_after[1] != r["genus_after"] or b_after[1] != len(r["kept"]):
         failures.append(f"{what}: oracle genus after {b_after[1]}, report {r['genus_after']}, kept {len(r['kept'])}")
-    # 2. tau inf: genus 0.
-    if tau == "inf" and mode == "both" and b_after[1] != 0:
-        failures.append(f"{what}: genus {b_after[1]} left")
-    failed = sum(1 for k in r["kept"] if k["reason"] not in ("size", "mode"))
-    if mode == "both" and failed:
-        failures.append(f"{what}: {failed} handles below tau kept (closure failed or unmeasured)")
-    # 4. Changed samples: values differ only where the side changed, near a closed loop.
-    differs = before_values != after_values
-    flipped = before != after
-    if (differs & ~flipped).any():
-        failures.append(f"{what}: {int((differs & ~flipped).sum())} samples changed value without changing side")
-    changed = np.argwhere(flipped)
-    if len(changed) != r["samples_changed"]:
-        failures.append(f"{what}: {len(changed)} samples changed, report says {r['samples_changed']}")
-    worst = 0.0
-    if len(changed):
-        pts, reach = [], []
-        for h in r["removed"]:
-            for p in h["points"]:
-                pts.append(p)
-                reach.append(h["thickness"] + h["length"] / 4)
-        tree = cKDTree(np.array(pts))
-        reach = np.array(reach)
-        # Within reach of some loop point: check the nearest few points of each sample.
-        d, i = tree.query(changed, k=min(16, len(pts)))
-        d, i = np.atleast_2d(d), np.atleast_2d(i)
-        ok = (d <= reach[np.minimum(i, len(pts) - 1)] + 1e-6).any(axis=1)
-        far = changed[~ok]
-        # The nearest few may all be from small loops: check the rest exactly.
-        for q in far:
-            dist = np.linalg.norm(np.array(pts) - q, axis=1)
-            if not (dist <= reach + 1e-6).any():
-                failures.append(f"{what}: changed sample {q.tolist()} is far from every closed loop")
-                break
-        worst = float(d[:, 0].max())
-    # 6. Fill only / cut only.
+    # 2. tau inf: genus 0; finite tau: certified, kept only for size.
+    if mode == "both":
+        if tau == "inf" and b_after[1] != 0:
+            failures.append(f"{what}: genus {b_after[1]} left")
+        bad = [k for k in r["kept"] if k["reason"] != "size"]
+        if bad:
+            failures.append(f"{what}: {len(bad)} handles kept for {sorted({k['reason'] for k in bad})}")
+        if tau != "inf" and r.get("certified") is not True:
+            failures.append(f"{what}: not certified ({r.get('certified')})")
+    else:
+        bad = [k for k in r["kept"] if k["reason"] not in ("size", "mode", "closure_failed")]
+        if bad:
+            failures.append(f"{what}: {len(bad)} handles kept for {sorted({k['reason'] for k in bad})}")
+    # 3. Fill only / cut only.
     if mode == "fill" and (before & ~after).any():
         failures.append(f"{what}: fill-only set {int((before & ~after).sum())} samples outside")
     if mode == "cut" and (~before & after).any():
         failures.append(f"{what}: cut-only set {int((~before & after).sum())} samples inside")
+    # 4. Changed samples: values differ only where the side changed, within their walls' reach.
+    differs = before_values != after_values
+    flips = before != after
+    if (differs & ~flips).any():
+        failures.append(f"{what}: {int((differs & ~flips).sum())} samples changed value without changing side")
+    flipped = np.argwhere(flips)
+    if len(flipped) != r["samples_changed"]:
+        failures.append(f"{what}: {len(flipped)} samples changed, report says {r['samples_changed']}")
+    failures += wall_reach_failures(r, flipped, what)
     # 5. Idempotent.
-    again = tmp / f"again{suffix}"
-    _, r2 = simplify(out, again, iso, tau, conn, mode, tmp / "report2.json")
+    _, r2 = simplify(out, tmp / f"again{suffix}", iso, tau, conn, mode, axis, inside, tmp / "report2.json")
     if r2["samples_changed"] != 0:
         failures.append(f"{what}: a second run changed {r2['samples_changed']} samples")
-    # 1. Analysis of the output: no handle below tau, except those kept on purpose (mode).
+    # 2. A new analysis of the output finds no handle below tau (both operations).
     small = 0
-    if tau != "inf":
-        a = run_isotopo("analyze", out, "--iso", iso, "--connectivity", conn, "--tau", tau, "--json", "-q")
-        small = sum(1 for h in a["handles"] if h.get("size") is not None and h["size"] < tau_f)
-        # With fill or cut only, a handle whose loops can only be closed the other way is kept
-        # (reason "mode", or "closure_failed" when no wall of the allowed kind removes it
-        # cleanly, e.g. a corner contact whose every one-sample cut would cut off a spur).
-        restricted = ("mode",) if mode == "both" else ("mode", "closure_failed")
-        on_purpose = sum(1 for k in r["kept"] if k["reason"] in restricted)
-        if small > on_purpose:
-            failures.append(f"{what}: analyze finds {small} handles below tau in the output ({on_purpose} kept by mode)")
+    if tau != "inf" and mode == "both":
+        a = run_isotopo("analyze", out, "--iso", iso, "--inside", inside, "--connectivity", conn,
+                        "--axis", axis, "--tau", tau, "--metric", "edges", "--json", "-q")
+        small = sum(1 for h in a["handles"] if h.get("size") is not None and h["size"] < float(tau))
+        if small:
+            failures.append(f"{what}: analyze finds {small} handles below tau in the output")
+    walls = {}
+    for h in r["removed"]:
+        walls[h["wall"]] = walls.get(h["wall"], 0) + 1
     print(
-        f"{name:<28} {str(tau):>4} {conn:>4} {mode:>5} | {b_before[1]:>5} -> {b_after[1]:<4} "
-        f"b0 {b_before[0]}={b_after[0]} b2 {b_before[2]}={b_after[2]} | changed {len(changed):>6} "
-        f"(max {worst:.2f} vox from a loop) | below tau after: {small} | {secs:6.1f} s"
-        f"{'' if not failures else '   <-- FAILED'}",
+        f"{what:<54} | {b_before[1]:>5} -> {b_after[1]:<4} b0 {b_before[0]}={b_after[0]} b2 {b_before[2]}={b_after[2]} "
+        f"| changed {len(flipped):>6} | walls {walls} | {secs:6.1f} s{'' if not failures else '   <-- FAILED'}",
         flush=True,
     )
     return failures
@@ -151,12 +195,19 @@ def main(argv):
     if not SHARED.exists():
         print(f"skipping: {SHARED} not found")
         return 0
-    runs = CI_RUNS + (MORE_RUNS if "--all" in argv else [])
+    matrix = matrix_runs()
+    if "--matrix" in argv and argv[argv.index("--matrix") + 1] == "all":
+        slow = [(n, t, c, m, a, "above") for n, t in sorted(SLOW) for c in (6, 26) for m in ("both", "fill", "cut")
+                for a in ("z", "x")]
+        runs = always_runs() + matrix + slow
+    else:
+        k = int(argv[argv.index("--matrix") + 1]) if "--matrix" in argv else commit_number()
+        print(f"coverage matrix: slice {k} ({MATRIX_PER_RUN} of {len(matrix)} runs; the slice turns with the commit)")
+        runs = always_runs() + matrix_slice(k, matrix)
     failures = []
-    print(f"{'volume':<28} {'tau':>4} {'conn':>4} {'mode':>5} | genus (oracle)   | samples | analysis of the output | time")
-    for name, tau, conn, mode in runs:
+    for run in runs:
         with tempfile.TemporaryDirectory() as d:
-            failures += check(name, tau, conn, mode, Path(d))
+            failures += check(run, Path(d))
     if failures:
         print("\nFAILED:\n" + "\n".join(failures))
         return 1

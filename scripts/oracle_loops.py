@@ -924,7 +924,7 @@ def _fmt_points(points, limit=None):
     return " ".join("(" + ",".join(f"{c:g}" for c in p) + ")" if isinstance(p, list) else p for p in pts)
 
 
-def _loop_vertices(surf, loop, name, res):
+def _loop_vertices(surf, loop, name, res, nontrivial=True):
     """Vertices of a reported loop after the structural checks; None (with failures) if broken."""
     pts = loop.get("points") or []
     try:
@@ -943,7 +943,7 @@ def _loop_vertices(surf, loop, name, res):
     except OracleError as e:
         res.fail(f"{name}: {e}")
         return None
-    if c.cls == 0:
+    if nontrivial and c.cls == 0:
         res.fail(f"{name}: trivial in homology (it separates the surface)")
         return None
     return c
@@ -972,6 +972,7 @@ def check_analysis(vol, iso, conn=6, inside="above", analysis=None, mesh_path=No
     sys_e = systole(surf.graph, surf.hom, "edges")
     res.data["systole_edges"] = sys_e.edges if sys_e else None
     mutual_bad, sizes, all_loops = [], [], []
+    all_loops_mm, sizes_mm = [], []
     res.lines.append("per handle, each loop: edges, mm reported (isotopo: along the points), mm along "
                      "the interpolated vertices, shortest odd crossing of the other loop (edges)")
     res.lines.append("handle  reeb: len mm(rep) mm(oracle) odd-min  cross: len mm(rep) mm(oracle) odd-min  size")
@@ -994,10 +995,16 @@ def check_analysis(vol, iso, conn=6, inside="above", analysis=None, mesh_path=No
         cols = []
         odd = {}
         r, x = loops.get("reeb_loop"), loops.get("cross_loop")
+        # A Reeb-cycle handle's Reeb loop is the shortest crossing its cut once (the cut is
+        # reported); an intra-ribbon handle's, the shortest crossing its cross loop once.
+        cut = None
+        if h.get("cut"):
+            cut = _loop_vertices(surf, {"points": h["cut"], "length": len(h["cut"])},
+                                 f"handle {hid} cut", res, nontrivial=False)
         if r is not None and x is not None:
             par = walk_parity(crossing_marks(surf.graph, x.vertices), r.vertices)
             odd["cross"] = shortest_odd_cycle(surf.graph, r.vertices, "edges", surf.hom)
-            odd["reeb"] = shortest_odd_cycle(surf.graph, x.vertices, "edges", surf.hom)
+            odd["reeb"] = shortest_odd_cycle(surf.graph, (cut or x).vertices, "edges", surf.hom)
             # Both loops are non-trivial here, so on an orientable surface each has an odd
             # crossing partner (the intersection form is non-degenerate): neither search is None.
             if par != 1:
@@ -1006,8 +1013,23 @@ def check_analysis(vol, iso, conn=6, inside="above", analysis=None, mesh_path=No
                 mutual_bad.append(f"handle {hid}: cross loop {x.edges} edges, shortest odd crossing of "
                                   f"the Reeb loop {odd['cross'].edges}")
             if odd["reeb"].edges != r.edges:
+                what = "the cut" if cut else "the cross loop"
                 mutual_bad.append(f"handle {hid}: Reeb loop {r.edges} edges, shortest odd crossing of "
-                                  f"the cross loop {odd['reeb'].edges}")
+                                  f"{what} {odd['reeb'].edges}")
+        # The loops shortest in millimetres, when reported: the same, in mm.
+        rm, xm = (h.get("reeb_loop_mm"), h.get("cross_loop_mm"))
+        if rm is not None and xm is not None:
+            rc = _loop_vertices(surf, rm, f"handle {hid} reeb_loop_mm", res)
+            xc = _loop_vertices(surf, xm, f"handle {hid} cross_loop_mm", res)
+            if rc is not None and xc is not None:
+                all_loops_mm.append((rc, xc))
+                oc = shortest_odd_cycle(surf.graph, rc.vertices, "mm", surf.hom)
+                orr = shortest_odd_cycle(surf.graph, (cut or xc).vertices, "mm", surf.hom)
+                for name, got, want in (("cross_loop_mm", xc.mm, oc.mm), ("reeb_loop_mm", rc.mm, orr.mm)):
+                    if got > want * (1 + 1e-5) + 1e-5:
+                        mutual_bad.append(f"handle {hid}: {name} {got:.4f} mm, the oracle's shortest "
+                                          f"{want:.4f} mm")
+                sizes_mm.append(min(rc.mm, xc.mm))
         for kind, other in (("reeb_loop", "reeb"), ("cross_loop", "cross")):
             lp, c = h.get(kind), loops.get(kind)
             if c is not None and "length_mm" in lp:
@@ -1039,6 +1061,13 @@ def check_analysis(vol, iso, conn=6, inside="above", analysis=None, mesh_path=No
     if smin != (sys_e.edges if sys_e else None):
         msg = f"(2) smallest handle size {smin} != systole {sys_e.edges if sys_e else None} edges"
         (res.fail if require_systole else res.warnings.append)(msg)
+    if sizes_mm and sys_e is not None:
+        sys_m = systole(surf.graph, surf.hom, "mm")
+        smin_mm = min(sizes_mm)
+        res.lines.append(f"systole in mm: {sys_m.mm:.4f}; smallest handle size in mm: {smin_mm:.4f}")
+        if abs(smin_mm - sys_m.mm) > 1e-5 * max(1.0, sys_m.mm):
+            msg = f"(2) smallest handle size {smin_mm:.4f} mm != systole {sys_m.mm:.4f} mm"
+            (res.fail if require_systole else res.warnings.append)(msg)
     res.data.update(min_size=smin, genus=genus, mutual_mismatches=len(mutual_bad))
     return res
 
