@@ -233,13 +233,14 @@ pub struct SliceCache {
     /// (a tall cycle's loop is chained through hundreds of them, measured again after every
     /// wall nearby).
     contours: FastMap<(i64, u64), std::sync::Arc<FastMap<u64, ()>>>,
+    contour_vertices: usize,
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
     bytes: usize,
 }
 
-/// Contours a cache keeps walked (forgotten all at once beyond).
-const MAX_CONTOURS: usize = 1 << 14;
+/// Vertices of the contours a cache keeps walked (about 4 MiB; forgotten all at once beyond).
+const MAX_CONTOUR_VERTICES: usize = 1 << 18;
 
 /// Memory the slices of a cache may take between handles (one handle's cycle may need more).
 const SLICE_CACHE_BYTES: usize = 24 << 20;
@@ -258,6 +259,7 @@ impl SliceCache {
             conn,
             slices: FastMap::default(),
             contours: FastMap::default(),
+            contour_vertices: 0,
             clock: 0,
             bytes: 0,
         }
@@ -324,9 +326,11 @@ impl SliceCache {
         let walked = crate::sweep::walk_contour(top, start, w)?;
         let keys: FastMap<u64, ()> = walked.iter().map(|v| (v.key(), ())).collect();
         let keys = std::sync::Arc::new(keys);
-        if self.contours.len() >= MAX_CONTOURS {
+        if self.contour_vertices + keys.len() > MAX_CONTOUR_VERTICES {
             self.contours.clear();
+            self.contour_vertices = 0;
         }
+        self.contour_vertices += keys.len();
         self.contours.insert((w, start.key()), keys.clone());
         Some(keys)
     }

@@ -171,14 +171,15 @@ fn contour_vertex(
 }
 
 /// The contour through `start` (a crossing on an edge lying in plane `w`), as its vertices in
-/// order: walk along the neighbours that stay in the plane.
-pub(crate) fn walk_contour(g: &mut Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
+/// order: walk along the neighbours that stay in the plane. The neighbourhoods are computed, not
+/// numbered in the graph: a tall cycle's contours would fill it with vertices no search visits.
+pub(crate) fn walk_contour(g: &Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
     let in_plane = |x: &Vertex| x.axis != 2 && x.p[2] == w;
     let mut out = vec![start];
     let mut prev = start;
     let mut cur = start;
     loop {
-        let a = g.around(cur)?;
+        let a = crate::surface::around(g.vol, g.table, cur)?;
         // Along segments in the plane (never a diagonal through a tube).
         let next = (0..a.n)
             .filter(|&k| !a.diagonal(k))
@@ -391,7 +392,7 @@ impl Sweeper {
             }
         }
         // Cycles: a ribbon meeting a contour already connected to it closes one.
-        let mut surface = Graph::new(vol, table);
+        let surface = Graph::new(vol, table);
         for (r, bottom) in bottom_of.iter().enumerate() {
             let rn = ribbon_node[r];
             for &c in bottom {
@@ -419,7 +420,7 @@ impl Sweeper {
                     let (v, _, level, cut_node) = shortest
                         .ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
                     self.is_cut[cut_node as usize] = true;
-                    let cut = walk_contour(&mut surface, v, level as i64)
+                    let cut = walk_contour(&surface, v, level as i64)
                         .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
                     let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
                     let contour_starts = path

@@ -1415,7 +1415,7 @@ mod tests {
                         if seen.contains_key(&key(v)) || !crate::surface::is_crossing(&vol, v) {
                             continue;
                         }
-                        let cut = walk_contour(&mut g, v, w).unwrap();
+                        let cut = walk_contour(&g, v, w).unwrap();
                         for c in &cut {
                             seen.insert(key(*c), ());
                         }
