@@ -55,7 +55,8 @@ def random_volume(rng):
 def check_volume(path, conn, axis, tau, tau_mm, tmp, what):
     """The oracle's checks on one volume (iso 0); a list of failures."""
     failures = []
-    a = run_isotopo("analyze", path, "--iso", 0, "--connectivity", conn, "--axis", axis, "--json", "-q")
+    a = run_isotopo("analyze", path, "--iso", 0, "--connectivity", conn, "--axis", axis, "--metric", "both",
+                    "--json", "-q")
     res = oracle.check_analysis(str(path), 0.0, conn, analysis=a, require_mutual=True)
     failures += [f"{what} analyze: {f}" for f in res.failures]
     # Informational: the smallest handle size against the systole (equal whenever the handles'
@@ -91,7 +92,7 @@ def tori(tmp):
         f = r - np.sqrt((np.sqrt(x**2 + y2**2) - R) ** 2 + z2**2)
         path = tmp / "torus.nii.gz"
         save(path, f)
-        a = run_isotopo("analyze", path, "--iso", 0, "--json", "-q")
+        a = run_isotopo("analyze", path, "--iso", 0, "--metric", "both", "--json", "-q")
         hs = a["handles"]
         if len(hs) != 1:
             failures.append(f"torus R {R} r {r} tilt {tilt}: {len(hs)} handles")

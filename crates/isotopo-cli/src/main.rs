@@ -100,10 +100,11 @@ struct AnalyzeArgs {
     /// Stop the searches in millimetres at this length. Default: no limit.
     #[arg(long, value_name = "MM")]
     tau_mm: Option<f64>,
-    /// Which shortest loops to measure: in voxel edges (the paper's), in millimetres along the
-    /// interpolated surface, or both (the default).
-    #[arg(long, value_enum, default_value = "both")]
-    metric: MetricArg,
+    /// Which shortest loops to measure: in voxel edges (the paper's unit, what --tau counts), in
+    /// millimetres along the interpolated surface (what --tau-mm counts; about three times as
+    /// long), or both. Default: edges, or mm with --tau-mm alone, both with --tau and --tau-mm.
+    #[arg(long, value_enum)]
+    metric: Option<MetricArg>,
     /// Print one JSON object (handles with their loops) instead of text.
     #[arg(long, conflicts_with = "csv")]
     json: bool,
@@ -837,7 +838,12 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
     let t = Instant::now();
-    let mm = a.metric != MetricArg::Edges;
+    let metric = a.metric.unwrap_or(match (tau, tau_mm) {
+        (Some(_), Some(_)) => MetricArg::Both,
+        (None, Some(_)) => MetricArg::Mm,
+        _ => MetricArg::Edges,
+    });
+    let mm = metric != MetricArg::Edges;
     let (mut masks, report) = sweep(reader.as_mut(), &opts, axis, &a.window, mm, &bars)?;
     let t_sweep = t.elapsed().as_secs_f64();
     let mut measure = |limits| {
@@ -851,7 +857,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         )
     };
     let loops_mm = if mm { Some(measure(limits_mm)?) } else { None };
-    let loops = if a.metric != MetricArg::Mm {
+    let loops = if metric != MetricArg::Mm {
         measure(limits)?
     } else {
         loops_mm.clone().unwrap_or_default()
