@@ -227,6 +227,100 @@ struct Caches {
     failed: FastMap<u64, ()>,
 }
 
+/// Measurements that stay exact from pass to pass: a handle's loops are searched within a reach
+/// of its curves (a loop shorter than r crossing a curve lies within r/2 edges of it, so within
+/// r/√2 voxels: no edge of the surface graph is longer than √2), so until a wall lands within
+/// that reach, measuring it again would find the same. The last pass, which must be an exact
+/// analysis of the result, then measures again only what the walls came near.
+#[derive(Default)]
+struct Lasting {
+    /// By [`memo_key`]: the loops, and their reach (local coordinates).
+    entries: FastMap<u64, (HandleLoops, Reach)>,
+}
+
+/// Where the searches of a measurement reached: the blocks of [`LASTING_BLOCK`]³ samples within
+/// the margin of its curves' vertices, or for a wide margin (long loops, no limit) the box.
+enum Reach {
+    Blocks(FastMap<[i64; 3], ()>),
+    Box(BBox),
+}
+
+/// Side of the blocks a lasting measurement's reach is kept in.
+const LASTING_BLOCK: i64 = 8;
+
+/// Margins beyond which a reach is kept as a box (a vertex's blocks would be too many).
+const LASTING_MAX_BLOCK_MARGIN: i64 = 4 * LASTING_BLOCK;
+
+impl Lasting {
+    fn get(&self, key: u64) -> Option<&HandleLoops> {
+        self.entries.get(&key).map(|e| &e.0)
+    }
+
+    /// Keeps a fresh measurement if its reach is known: its searches were exact (no budget ran
+    /// out), in voxel edges, and stopped at a finite limit (or found both loops).
+    fn offer(&mut self, key: u64, l: &HandleLoops, limits: Limits) {
+        let r = if limits.below.is_finite() {
+            limits.below
+        } else {
+            match (&l.reeb, &l.cross) {
+                (Some(a), Some(b)) => a.length.max(b.length) as f64,
+                _ => return,
+            }
+        };
+        if !l.exact || limits.metric != Metric::Edges {
+            return;
+        }
+        let margin = (r * std::f64::consts::FRAC_1_SQRT_2).ceil() as i64 + 2;
+        let curves = [&l.reeb, &l.cross]
+            .into_iter()
+            .flatten()
+            .map(|x| &x.vertices[..]);
+        let basis = l.basis.iter().flat_map(|(p, q)| [&p[..], &q[..]]);
+        let vertices = curves.chain(basis).flatten();
+        let reach = if margin > LASTING_MAX_BLOCK_MARGIN {
+            let mut b = BBox::EMPTY;
+            for v in vertices {
+                b.include(v.p.map(|x| x - margin));
+                b.include(v.p.map(|x| x + 1 + margin));
+            }
+            Reach::Box(b)
+        } else {
+            let mut blocks = FastMap::default();
+            for v in vertices {
+                let lo = v.p.map(|x| (x - margin).div_euclid(LASTING_BLOCK));
+                let hi = v.p.map(|x| (x + 1 + margin).div_euclid(LASTING_BLOCK));
+                for z in lo[2]..=hi[2] {
+                    for y in lo[1]..=hi[1] {
+                        for x in lo[0]..=hi[0] {
+                            blocks.insert([x, y, z], ());
+                        }
+                    }
+                }
+            }
+            Reach::Blocks(blocks)
+        };
+        self.entries.insert(key, (l.clone(), reach));
+    }
+
+    /// Forgets the measurements within reach of one of the walls (local boxes).
+    fn forget_near(&mut self, walls: &[BBox]) {
+        let touched: Vec<[i64; 3]> = walls
+            .iter()
+            .flat_map(|w| {
+                let lo = w.min.map(|x| x.div_euclid(LASTING_BLOCK));
+                let hi = w.max.map(|x| x.div_euclid(LASTING_BLOCK));
+                (lo[2]..=hi[2]).flat_map(move |z| {
+                    (lo[1]..=hi[1]).flat_map(move |y| (lo[0]..=hi[0]).map(move |x| [x, y, z]))
+                })
+            })
+            .collect();
+        self.entries.retain(|_, (_, reach)| match reach {
+            Reach::Blocks(blocks) => !touched.iter().any(|b| blocks.contains_key(b)),
+            Reach::Box(b) => !walls.iter().any(|w| overlaps(w, b, 0)),
+        });
+    }
+}
+
 /// Identity of a located handle across rewinds: its cut and where its cycle lies.
 fn memo_key(h: &LocatedHandle) -> u64 {
     use std::hash::{Hash, Hasher};
@@ -251,6 +345,7 @@ impl Caches {
         conn: Connectivity,
         affine: &Affine,
         limits: Limits,
+        lasting: &mut Lasting,
     ) -> Vec<HandleLoops> {
         if self.graph.len() > GRAPH_CACHE_LIMIT {
             self.graph = GraphCache::default();
@@ -260,7 +355,7 @@ impl Caches {
             .iter()
             .map(|h| {
                 let key = memo_key(h);
-                if let Some(l) = self.memo.get(&key) {
+                if let Some(l) = self.memo.get(&key).or_else(|| lasting.get(key)) {
                     return l.clone();
                 }
                 let h = Handle {
@@ -280,6 +375,7 @@ impl Caches {
                         h.located.cycle.len()
                     );
                 }
+                lasting.offer(key, &l, limits);
                 self.memo.insert(key, l.clone());
                 l
             })
@@ -803,6 +899,7 @@ pub fn simplify(
     let certifying = opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none();
     let mut basis: Vec<(i64, Vec<Vec<Vertex>>)> = Vec::new();
     let mut certified = None;
+    let mut lasting = Lasting::default();
     loop {
         pass += 1;
         kept.clear();
@@ -850,7 +947,7 @@ pub fn simplify(
                     .count();
             }
             let t = std::time::Instant::now();
-            let measured = caches.measure(vol, &new, conn, affine, limits);
+            let measured = caches.measure(vol, &new, conn, affine, limits, &mut lasting);
             seconds.loops += t.elapsed().as_secs_f64();
             let t = std::time::Instant::now();
             let mut order: Vec<usize> = (0..n).collect();
@@ -974,6 +1071,7 @@ pub fn simplify(
                 // and at least from s (this step's handles, measured before the walls).
                 let to = (lowest - 1).min(s);
                 caches.forget_near(&walls);
+                lasting.forget_near(&walls);
                 sweeper.rewind(vol, to);
                 kept.retain(|(at, _)| *at < to);
                 basis.retain(|(at, _)| *at < to);
