@@ -391,9 +391,32 @@ fn add(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
 }
 
 /// Flips the samples of `cand` (all of state `side`) that are simple, in their order, until none
-/// is left; returns those flipped. A sample's simplicity changes only when a neighbour flips, so
-/// after the first pass only the neighbours of flipped samples are looked at again.
+/// is left; returns those flipped.
 fn thin(vol: &mut MaskVolume, conn: Connectivity, cand: &[[i64; 3]], side: bool) -> Vec<[i64; 3]> {
+    flip_simple(vol, conn, cand, !side)
+}
+
+/// With the cut made: flips back, in turn, every thinned sample whose flip back is simple,
+/// until none is; returns those flipped back (the volume keeps them flipped back).
+fn put_back(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    thinned: &[[i64; 3]],
+    side: bool,
+) -> Vec<[i64; 3]> {
+    flip_simple(vol, conn, thinned, side)
+}
+
+/// Sets to `to`, in their order and pass after pass, the samples of `cand` whose flip is simple
+/// at the time, until none is; returns those set. A sample's simplicity changes only when a
+/// neighbour flips, so after the first pass only the neighbours of flipped samples are looked
+/// at again.
+fn flip_simple(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    cand: &[[i64; 3]],
+    to: bool,
+) -> Vec<[i64; 3]> {
     let index: FastMap<[i64; 3], usize> = cand.iter().enumerate().map(|(i, &q)| (q, i)).collect();
     let mut flipped: Vec<[i64; 3]> = Vec::new();
     let mut done = vec![false; cand.len()];
@@ -406,7 +429,7 @@ fn thin(vol: &mut MaskVolume, conn: Connectivity, cand: &[[i64; 3]], side: bool)
             }
             dirty[i] = false;
             if topological_numbers(vol, q, conn) == (1, 1) {
-                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !side);
+                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, to);
                 flipped.push(q);
                 done[i] = true;
                 any = true;
@@ -424,40 +447,6 @@ fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [b
     for d in neighbourhood().offsets {
         if let Some(&j) = index.get(&[q[0] + d[0], q[1] + d[1], q[2] + d[2]]) {
             dirty[j] = true;
-        }
-    }
-}
-
-/// With the cut made: flips back, in turn, every thinned sample whose flip back is simple,
-/// until none is; returns those flipped back (the volume keeps them flipped back).
-fn put_back(
-    vol: &mut MaskVolume,
-    conn: Connectivity,
-    thinned: &[[i64; 3]],
-    side: bool,
-) -> Vec<[i64; 3]> {
-    let index: FastMap<[i64; 3], usize> =
-        thinned.iter().enumerate().map(|(i, &q)| (q, i)).collect();
-    let mut back = Vec::new();
-    let mut done = vec![false; thinned.len()];
-    let mut dirty = vec![true; thinned.len()];
-    loop {
-        let mut any = false;
-        for (i, &q) in thinned.iter().enumerate() {
-            if done[i] || !dirty[i] {
-                continue;
-            }
-            dirty[i] = false;
-            if topological_numbers(vol, q, conn) == (1, 1) {
-                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, side);
-                back.push(q);
-                done[i] = true;
-                any = true;
-                mark_neighbours(&index, q, &mut dirty);
-            }
-        }
-        if !any {
-            return back;
         }
     }
 }
@@ -506,66 +495,25 @@ mod tests {
         (vol, pts)
     }
 
-    /// The ring's bar, peeled within the slab x = 6 down to its centre and cut there: none of
-    /// the peeled samples can go back without joining the two sides again, so the wall is the
-    /// whole section (a 6-connected bar is only cut by all 9). Once the ring is open (a U), the
-    /// same cut would split the solid in two: no wall.
-    #[test]
-    fn peeling_a_thick_bar_cuts_its_ring_and_never_splits() {
-        for closed in [true, false] {
-            let (mut vol, pts) = ring_and_loop(closed);
-            let before: Vec<bool> = (0..14 * 14 * 7)
+    /// Peels the slab x = 6 across the ring's bar towards its centre, for the loop `pts`,
+    /// searching rings in the whole volume; the volume must be left as it was.
+    fn peel_bar(vol: &mut MaskVolume, pts: &[[f64; 3]]) -> Vec<Vec<[i64; 3]>> {
+        let all = |vol: &MaskVolume| -> Vec<bool> {
+            (0..14 * 14 * 7)
                 .map(|i| vol.get(i % 14, i / 14 % 14, i / 196))
-                .collect();
-            let region: Vec<[i64; 3]> = (0..6)
-                .flat_map(|y| (1..6).map(move |z| [6, y, z]))
-                .collect();
-            let target = PeelTarget {
-                loop_points: &pts,
-                lo: [-1, -1, -1],
-                hi: [14, 14, 7],
-            };
-            let walls = peel_walls(
-                &mut vol,
-                Connectivity::Six,
-                &region,
-                [6.0, 2.0, 3.0],
-                Operation::Pinch,
-                &target,
-                4,
-            );
-            let after: Vec<bool> = (0..14 * 14 * 7)
-                .map(|i| vol.get(i % 14, i / 14 % 14, i / 196))
-                .collect();
-            assert_eq!(before, after, "the volume is left as it was");
-            if closed {
-                let wall = walls.first().expect("a cut");
-                assert_eq!(wall.len(), 9, "{wall:?}");
-                assert!(wall.iter().all(|q| q[0] == 6), "{wall:?}");
-            } else {
-                assert!(walls.is_empty(), "{walls:?}");
-            }
-        }
-    }
-
-    /// A loop that does not go round the bar (beside it) links no ring: no wall.
-    #[test]
-    fn a_cut_must_link_the_loop() {
-        let (mut vol, pts) = ring_and_loop(true);
-        let away: Vec<[f64; 3]> = pts
-            .iter()
-            .map(|p| [p[0] + 0.0, p[1] + 20.0, p[2]])
-            .collect();
+                .collect()
+        };
+        let before = all(vol);
         let region: Vec<[i64; 3]> = (0..6)
             .flat_map(|y| (1..6).map(move |z| [6, y, z]))
             .collect();
         let target = PeelTarget {
-            loop_points: &away,
+            loop_points: pts,
             lo: [-1, -1, -1],
             hi: [14, 14, 7],
         };
         let walls = peel_walls(
-            &mut vol,
+            vol,
             Connectivity::Six,
             &region,
             [6.0, 2.0, 3.0],
@@ -573,6 +521,32 @@ mod tests {
             &target,
             4,
         );
+        assert_eq!(before, all(vol), "the volume is left as it was");
+        walls
+    }
+
+    /// The ring's bar, peeled within the slab x = 6 down to its centre and cut there: none of
+    /// the peeled samples can go back without joining the two sides again, so the wall is the
+    /// whole section (a 6-connected bar is only cut by all 9). Once the ring is open (a U), the
+    /// same cut would split the solid in two: no wall.
+    #[test]
+    fn peeling_a_thick_bar_cuts_its_ring_and_never_splits() {
+        let (mut vol, pts) = ring_and_loop(true);
+        let walls = peel_bar(&mut vol, &pts);
+        let wall = walls.first().expect("a cut");
+        assert_eq!(wall.len(), 9, "{wall:?}");
+        assert!(wall.iter().all(|q| q[0] == 6), "{wall:?}");
+        let (mut open, pts) = ring_and_loop(false);
+        let walls = peel_bar(&mut open, &pts);
+        assert!(walls.is_empty(), "{walls:?}");
+    }
+
+    /// A loop that does not go round the bar (beside it) links no ring: no wall.
+    #[test]
+    fn a_cut_must_link_the_loop() {
+        let (mut vol, pts) = ring_and_loop(true);
+        let away: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 20.0, p[2]]).collect();
+        let walls = peel_bar(&mut vol, &away);
         assert!(walls.is_empty(), "{walls:?}");
     }
 }
