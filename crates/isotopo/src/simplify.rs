@@ -107,12 +107,13 @@ pub struct Removed {
     pub length: usize,
     pub length_mm: f64,
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
-    /// `peeled_box` wall, the margin of the box round the loop it lies in).
+    /// `peeled_box` or `peeled_along` wall, the margin of the box it lies in).
     pub thickness: f64,
     /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`,
     /// `peeled` (the samples near the fan thinned by simple samples and cut at the one sample
-    /// that cuts the ring the loop goes round) or `peeled_box` (the same in a box round the
-    /// loop).
+    /// that cuts the ring the loop goes round), `peeled_box` (the same in a box round the
+    /// loop) or `peeled_along` (the same in that box moved along the other loop, where the
+    /// ring is cut away from this loop: its samples may lie far from `points`).
     pub wall: &'static str,
     /// Samples this closure flipped: how many, and which (original coordinates).
     pub samples_changed: usize,
@@ -581,6 +582,11 @@ enum Wall {
     /// The same with every sample of the box round the loop, this much larger than the loop's:
     /// for a long twisted loop whose fan is far from the disk it bounds.
     PeelBox(i64, usize),
+    /// The same box moved along the partner loop (the j-th of [`PEEL_ALONG`] steps round it),
+    /// margin as given: where the ring cannot be cut near the loop without cutting something
+    /// else too (a bar hollow there, a tunnel with a speck of material in it), it may be
+    /// further on.
+    PeelAlong(usize, i64, usize),
 }
 
 impl Wall {
@@ -589,7 +595,7 @@ impl Wall {
             Wall::Fan(d) => d,
             Wall::Single(_) => SINGLE_SAMPLE_REACH,
             Wall::Peel(d, _) => d,
-            Wall::PeelBox(margin, _) => margin as f64,
+            Wall::PeelBox(margin, _) | Wall::PeelAlong(_, margin, _) => margin as f64,
         }
     }
 
@@ -599,6 +605,7 @@ impl Wall {
             Wall::Single(_) => "single_sample",
             Wall::Peel(..) => "peeled",
             Wall::PeelBox(..) => "peeled_box",
+            Wall::PeelAlong(..) => "peeled_along",
         }
     }
 }
@@ -607,8 +614,27 @@ impl Wall {
 /// corner or edge contact, single samples (one may do); then walls peeled down to the one sample
 /// that cuts the ring the loop goes round, in regions near the fan, then in boxes round the
 /// loop (see [`closure::peel_walls`]: these always remove a handle and split nothing; the
-/// regions grow until one holds a cut).
-fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
+/// regions grow until one holds a cut). Or, reaching along, boxes moved along the partner.
+fn walls_for(
+    lp: &Loop,
+    op: Operation,
+    conn: Connectivity,
+    partner: &[Vertex],
+    reach: WallReach,
+) -> Vec<Wall> {
+    let wide = (lp.length as i64 / 4).max(2 * PEEL_BOX_MARGIN);
+    if reach == WallReach::Along {
+        if partner.is_empty() {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for margin in [PEEL_BOX_MARGIN, wide] {
+            for j in 1..PEEL_ALONG {
+                out.extend((0..PEEL_CUTS).map(|k| Wall::PeelAlong(j, margin, k)));
+            }
+        }
+        return out;
+    }
     let mut out: Vec<Wall> = EXTRA_THICKNESS
         .iter()
         .map(|extra| Wall::Fan(base_thickness(op, conn) + extra))
@@ -623,12 +649,14 @@ fn walls_for(lp: &Loop, op: Operation, conn: Connectivity) -> Vec<Wall> {
     for d in PEEL_REACH {
         out.extend((0..PEEL_CUTS).map(|k| Wall::Peel(d, k)));
     }
-    let wide = (lp.length as i64 / 4).max(2 * PEEL_BOX_MARGIN);
     for margin in [PEEL_BOX_MARGIN, wide] {
         out.extend((0..PEEL_CUTS).map(|k| Wall::PeelBox(margin, k)));
     }
     out
 }
+
+/// Steps round the partner loop at which the box round the loop is moved and peeled again.
+const PEEL_ALONG: usize = 8;
 
 /// Samples of a peeled region tried as the cut, nearest the loop's centroid first.
 const PEEL_CUTS: usize = 8;
@@ -719,6 +747,29 @@ fn peel_centre(points: &[[f64; 3]], partner: &[Vertex]) -> [f64; 3] {
     }
 }
 
+/// The loop's points moved along its partner by `j` of [`PEEL_ALONG`] steps from where the
+/// partner crosses the loop (`centre`), and where that step lands.
+fn moved_along(
+    points: &[[f64; 3]],
+    centre: [f64; 3],
+    partner: &[Vertex],
+    j: usize,
+) -> (Vec<[f64; 3]>, [f64; 3]) {
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let start = (0..partner.len())
+        .min_by(|&a, &b| {
+            d2(partner[a].midpoint(), centre).total_cmp(&d2(partner[b].midpoint(), centre))
+        })
+        .unwrap_or(0);
+    let at = partner[(start + j * partner.len() / PEEL_ALONG) % partner.len()].midpoint();
+    let shift: [f64; 3] = std::array::from_fn(|k| at[k] - centre[k]);
+    let moved = points
+        .iter()
+        .map(|p| std::array::from_fn(|k| p[k] + shift[k]))
+        .collect();
+    (moved, at)
+}
+
 /// Margin of the box round a loop and its partner where a peeled wall's ring is looked for.
 const PEEL_RING_MARGIN: i64 = 3;
 
@@ -729,8 +780,7 @@ fn close_loop(
     lp: &Loop,
     partner: &[Vertex],
     ops: &[Operation],
-    graph: &mut GraphCache,
-    refused: &mut usize,
+    (reach, graph, refused): (WallReach, &mut GraphCache, &mut usize),
 ) -> Option<(closure::Applied, Wall)> {
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
     let centre = peel_centre(&points, partner);
@@ -750,16 +800,28 @@ fn close_loop(
         near.as_ref().expect("set above").within(d)
     };
     for &op in ops {
-        for w in walls_for(lp, op, conn) {
+        for w in walls_for(lp, op, conn, partner, reach) {
             let samples = match w {
                 Wall::Fan(d) => near_fan(d),
                 Wall::Single([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
                 Wall::Single(q) => vec![q],
                 // Peeled once per region; its cuts are tried in turn.
-                Wall::Peel(_, k) | Wall::PeelBox(_, k) if k > 0 => match peeled.get(k) {
-                    Some(x) => x.clone(),
-                    None => continue,
-                },
+                Wall::Peel(_, k) | Wall::PeelBox(_, k) | Wall::PeelAlong(_, _, k) if k > 0 => {
+                    match peeled.get(k) {
+                        Some(x) => x.clone(),
+                        None => continue,
+                    }
+                }
+                Wall::PeelAlong(j, margin, _) => {
+                    let (moved, at) = moved_along(&points, centre, partner, j);
+                    let (region, b) = box_region(vol, &moved, margin);
+                    let target = peel_target(&points, partner, lp.length, b);
+                    peeled = closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS);
+                    match peeled.first() {
+                        Some(x) => x.clone(),
+                        None => continue,
+                    }
+                }
                 Wall::Peel(d, _) => {
                     let region = near_fan(d);
                     let target = peel_target(&points, partner, lp.length, BBox::EMPTY);
@@ -786,7 +848,7 @@ fn close_loop(
                 partner,
                 op,
                 wall: samples,
-                certified: matches!(w, Wall::Peel(..) | Wall::PeelBox(..)),
+                certified: !matches!(w, Wall::Fan(_) | Wall::Single(_)),
             };
             let r = closure::close(vol, conn, attempt, graph);
             match r {
@@ -800,7 +862,9 @@ fn close_loop(
 
 /// Closes one of a handle's loops: the candidates (loops below tau, shortest first), then, if
 /// every wall across them is refused, the handle's other loop whatever its length (measured now
-/// if its search stopped at tau). Returns the loop closed, how, and with which wall.
+/// if its search stopped at tau). Walls across the loops come first; walls moved along their
+/// partners (slower, and farther from the loop) only when no loop has one. Returns the loop
+/// closed, how, and with which wall.
 fn close_handle<'l>(
     vol: &mut MaskVolume,
     opts: &SimplifyOptions,
@@ -809,6 +873,31 @@ fn close_handle<'l>(
     affine: &Affine,
     graph: &mut GraphCache,
     refused: &mut usize,
+) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+    let mut by = |reach: WallReach| {
+        close_handle_by(vol, opts, l, candidates, affine, (graph, refused), reach)
+    };
+    by(WallReach::Across).or_else(|| by(WallReach::Along))
+}
+
+/// Where the walls tried across a loop lie.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum WallReach {
+    /// Across the loop: fans, single samples, regions near the fan and boxes round the loop.
+    Across,
+    /// In the box round the loop moved along its partner.
+    Along,
+}
+
+/// [`close_handle`] with the walls of one reach.
+fn close_handle_by<'l>(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    l: &'l HandleLoops,
+    candidates: &[(LoopKind, &'l Loop)],
+    affine: &Affine,
+    (graph, refused): (&mut GraphCache, &mut usize),
+    reach: WallReach,
 ) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
     let conn = opts.conn;
     let partner_of = |which: LoopKind| match which {
@@ -828,7 +917,7 @@ fn close_handle<'l>(
     for &(which, lp) in candidates {
         let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
         let ops = ops_for(lp, !partner.is_empty());
-        if let Some((a, w)) = close_loop(vol, conn, lp, partner, &ops, graph, refused) {
+        if let Some((a, w)) = close_loop(vol, conn, lp, partner, &ops, (reach, graph, refused)) {
             return Some((which, std::borrow::Cow::Borrowed(lp), a, w));
         }
     }
@@ -853,7 +942,14 @@ fn close_handle<'l>(
     };
     let ops = ops_for(&found, true);
     let ops: Vec<Operation> = ops.into_iter().filter(|&op| opts.mode.allows(op)).collect();
-    if let Some((a, w)) = close_loop(vol, conn, &found, &lp.vertices, &ops, graph, refused) {
+    if let Some((a, w)) = close_loop(
+        vol,
+        conn,
+        &found,
+        &lp.vertices,
+        &ops,
+        (reach, graph, refused),
+    ) {
         return Some((other, found, a, w));
     }
     // Last, the handle's two curves that cross once (its cut and the loop round its cycle): a
@@ -869,7 +965,7 @@ fn close_handle<'l>(
             .into_iter()
             .filter(|&op| opts.mode.allows(op))
             .collect();
-        if let Some((a, w)) = close_loop(vol, conn, &lx, y, &ops, graph, refused) {
+        if let Some((a, w)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused)) {
             return Some((other, std::borrow::Cow::Owned(lx), a, w));
         }
     }

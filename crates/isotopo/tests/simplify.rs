@@ -211,7 +211,8 @@ fn check(
     // 4. Every changed sample was flipped by a wall, and lies where that kind of wall reaches
     // from its own loop: a fan wall (or a peeled one, cut from the fan's samples) within its
     // thickness of the fan, whose points are within a quarter of the loop's length of it; a
-    // single sample within its reach of the loop's centroid; a wall peeled in a box inside it.
+    // single sample within its reach of the loop's centroid; a wall peeled in a box inside it,
+    // or in that box moved along the other loop.
     let mut flipped_by: std::collections::HashMap<[i64; 3], usize> = Default::default();
     for (i, r) in out.removed.iter().enumerate() {
         for &q in &r.samples {
@@ -227,15 +228,34 @@ fn check(
         let dist = |a: &[f64; 3]| {
             ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2) + (p[2] - a[2]).powi(2)).sqrt()
         };
+        let extent = |k: usize| {
+            let lo = r.points.iter().map(|a| a[k]).fold(f64::INFINITY, f64::min);
+            let hi = r
+                .points
+                .iter()
+                .map(|a| a[k])
+                .fold(f64::NEG_INFINITY, f64::max);
+            (lo.floor(), hi.ceil())
+        };
         let ok = match r.wall {
             "peeled_box" => (0..3).all(|k| {
-                let lo = r.points.iter().map(|a| a[k]).fold(f64::INFINITY, f64::min);
-                let hi = r
-                    .points
-                    .iter()
-                    .map(|a| a[k])
-                    .fold(f64::NEG_INFINITY, f64::max);
-                p[k] >= lo.floor() - r.thickness && p[k] <= hi.ceil() + r.thickness
+                let (lo, hi) = extent(k);
+                p[k] >= lo - r.thickness && p[k] <= hi + r.thickness
+            }),
+            // The loop's box moved to a point of its partner (inside the handle's box): the
+            // wall fits in a box that size, round a point of the handle's box.
+            "peeled_along" => (0..3).all(|k| {
+                let (lo, hi) = extent(k);
+                let size = hi - lo + 2.0 * r.thickness;
+                let spread = r.samples.iter().map(|s| s[k] as f64);
+                let (a, b) = (
+                    spread.clone().fold(f64::INFINITY, f64::min),
+                    spread.fold(f64::NEG_INFINITY, f64::max),
+                );
+                let half = (hi - lo) / 2.0 + r.thickness + 1.0;
+                b - a <= size
+                    && p[k] >= r.bbox.min[k] as f64 - half
+                    && p[k] <= r.bbox.max[k] as f64 + half
             }),
             _ => {
                 let reach = r.thickness + r.length as f64 / 4.0 + 1e-6;
@@ -626,4 +646,81 @@ fn walls_the_fan_cannot_close_are_closed_otherwise() {
         other_walls += out.removed.iter().filter(|r| r.wall != "fan").count();
     }
     assert!(other_walls >= 3, "only {other_walls} walls other than fans");
+}
+
+/// A torus whose tube is hollow where it is thinnest:
+///
+/// ```text
+///    seen from above                 the tube's section at θ = 0
+///      . - ~ - .                        # # # # #
+///    /           \                    # # . . . # #     . : a cavity running along the
+///   |      o      |  θ = 0 -> [.]     # # . . . # #         core for |θ| < 50°
+///    \           /                    # # # # # # #
+///      ' - ~ - '
+/// ```
+///
+/// The shortest loop round the tube is where the cavity is, and any cut there opens the
+/// cavity (b2 would change). Cutting only, the code that peeled walls in boxes round the loop
+/// kept it as `closure_failed`; boxes moved along the loop round the hole find the tube solid.
+/// The same shape turned inside out is a box of material holding a toroidal cavity with a rod
+/// floating in part of it: filling only, the tunnel is filled where the rod is not (filling
+/// across the rod would join it to the box).
+#[test]
+fn a_hollow_bar_is_cut_where_it_is_solid() {
+    let dims = [34usize, 34, 16];
+    let (c, big_r) = ([16.5, 16.5, 7.5], 9.0);
+    let inside: Vec<bool> = (0..dims[2])
+        .flat_map(|z| (0..dims[1]).flat_map(move |y| (0..dims[0]).map(move |x| (x, y, z))))
+        .map(|(x, y, z)| {
+            let (dx, dy, dz) = (x as f64 - c[0], y as f64 - c[1], z as f64 - c[2]);
+            let theta = dy.atan2(dx);
+            let rho = ((dx.hypot(dy) - big_r).powi(2) + dz * dz).sqrt();
+            let tube = 3.6 - 0.9 * theta.cos();
+            let hollow = theta.abs() < 50f64.to_radians() && rho < 1.1;
+            rho < tube && !hollow
+        })
+        .collect();
+    let vol = volume_of(dims, &inside);
+    for conn in BOTH {
+        let (b0, b1, b2, _) = betti(&inside, dims, conn);
+        assert_eq!(
+            (b0, b1, b2),
+            (1, 1, 1),
+            "the shape itself (conn {})",
+            conn.number()
+        );
+        for axis in [Axis::Z, Axis::X] {
+            let opts = options(f64::INFINITY, Mode::CutOnly, conn);
+            let (out, _) =
+                check("hollow torus", &vol, 0.0, axis, &opts).unwrap_or_else(|e| panic!("{e}"));
+            assert!(
+                out.kept.is_empty(),
+                "conn {}, axis {}: {:?}",
+                conn.number(),
+                axis.name(),
+                out.kept
+            );
+            assert!(
+                out.edits.iter().all(|e| !e.1),
+                "cut only sets samples outside"
+            );
+        }
+    }
+    let turned: Vec<bool> = inside.iter().map(|&b| !b).collect();
+    let vol = volume_of(dims, &turned);
+    for conn in BOTH {
+        let (b0, b1, b2, _) = betti(&turned, dims, conn);
+        assert_eq!((b0, b1, b2), (2, 1, 1), "turned (conn {})", conn.number());
+        for axis in [Axis::Z, Axis::X] {
+            let opts = options(f64::INFINITY, Mode::FillOnly, conn);
+            let (out, _) = check("turned hollow torus", &vol, 0.0, axis, &opts)
+                .unwrap_or_else(|e| panic!("{e}"));
+            let at = format!("turned, conn {}, axis {}", conn.number(), axis.name());
+            assert!(out.kept.is_empty(), "{at}: {:?}", out.kept);
+            assert!(
+                out.edits.iter().all(|e| e.1),
+                "fill only sets samples inside"
+            );
+        }
+    }
 }
