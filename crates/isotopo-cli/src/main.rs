@@ -569,13 +569,6 @@ fn cmd_convert(a: ConvertArgs) -> Result<()> {
     volume::convert(reader.as_mut(), &a.output)
 }
 
-fn inside_name(i: Inside) -> &'static str {
-    match i {
-        Inside::Above => "above",
-        Inside::Below => "below",
-    }
-}
-
 fn to_json(v: &impl serde::Serialize) -> Result<String> {
     serde_json::to_string_pretty(v).map_err(|e| Error::Internal(e.to_string()))
 }
@@ -593,7 +586,7 @@ fn cmd_genus(a: GenusArgs) -> Result<()> {
             "file": info.path,
             "dims": info.dims,
             "iso": opts.iso,
-            "inside": inside_name(opts.inside),
+            "inside": opts.inside.name(),
             "connectivity": opts.connectivity.number(),
             "b0": r.b0,
             "b1": r.b1,
@@ -609,7 +602,7 @@ fn cmd_genus(a: GenusArgs) -> Result<()> {
         "{}: iso {}, inside {}, connectivity {}",
         info.path.display(),
         num(opts.iso),
-        inside_name(opts.inside),
+        opts.inside.name(),
         opts.connectivity.number()
     );
     println!(
@@ -735,7 +728,7 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
             "file": info.path,
             "dims": info.dims,
             "iso": opts.iso,
-            "inside": inside_name(opts.inside),
+            "inside": opts.inside.name(),
             "connectivity": opts.connectivity.number(),
             "axis": axis.name(),
             "genus": report.genus,
@@ -755,7 +748,7 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
         "{}: iso {}, inside {}, connectivity {}, sweep along {}",
         info.path.display(),
         num(opts.iso),
-        inside_name(opts.inside),
+        opts.inside.name(),
         opts.connectivity.number(),
         axis.name()
     );
@@ -891,7 +884,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
             "file": info.path,
             "dims": info.dims,
             "iso": opts.iso,
-            "inside": inside_name(opts.inside),
+            "inside": opts.inside.name(),
             "connectivity": opts.connectivity.number(),
             "axis": axis.name(),
             "tau": tau.filter(|t| t.is_finite()),
@@ -920,7 +913,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         "{}: iso {}, inside {}, connectivity {}, sweep along {}",
         info.path.display(),
         num(opts.iso),
-        inside_name(opts.inside),
+        opts.inside.name(),
         opts.connectivity.number(),
         axis.name()
     );
@@ -1064,9 +1057,8 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
 }
 
 fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
-    use isotopo::simplify::{Mode, SimplifyOptions, WallValues};
-    let opts = a.surface.options()?;
-    let axis = a.axis.axis();
+    use isotopo::simplify::{Mode, SimplifyOptions};
+    let surface = a.surface.options()?;
     let (tau, metric, flag) = match (a.tau, a.tau_mm) {
         (Some(t), _) => (t, isotopo::loops::Metric::Edges, "--tau"),
         (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
@@ -1080,7 +1072,23 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
             return Err(Error::usage("--max-ratio must be at least 1"));
         }
     }
-    let mut reader = a.input.open()?;
+    let sopts = SimplifyOptions {
+        surface,
+        axis: a.axis.axis(),
+        tau,
+        metric,
+        mode: if a.fill_only {
+            Mode::FillOnly
+        } else if a.cut_only {
+            Mode::CutOnly
+        } else {
+            Mode::Both
+        },
+        max_ratio: a.max_ratio,
+        max_slices: a.window.max_slices,
+    };
+    // Every output is checked before the work starts.
+    let reader = a.input.open()?;
     let info = reader.info().clone();
     let mut outputs = vec![&a.output];
     outputs.extend(a.mesh.iter());
@@ -1101,92 +1109,30 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
             info.format.name()
         )));
     }
-    let sopts = SimplifyOptions {
-        tau,
-        metric,
-        mode: if a.fill_only {
-            Mode::FillOnly
-        } else if a.cut_only {
-            Mode::CutOnly
-        } else {
-            Mode::Both
-        },
-        max_ratio: a.max_ratio,
-        conn: opts.connectivity,
-    };
-    let values = WallValues::new(info.dtype, &opts.classifier(&info));
     let bars = progress::Bars::new(a.quiet || a.json);
     let t0 = Instant::now();
-    // Lengths in millimetres follow the interpolated surface: keep the fractions along the
-    // crossing edges (one byte each) when tau is in millimetres.
-    let read = if metric == isotopo::loops::Metric::Millimetres {
-        MaskVolume::from_reader_with_fractions
-    } else {
-        MaskVolume::from_reader
-    };
-    let mut masks = read(reader.as_mut(), &opts, axis, a.window.max_slices, &bars)?;
-    let t_read = t0.elapsed().as_secs_f64();
-    let before = masks.genus(opts.connectivity)?;
+    let mut done = isotopo::simplify(isotopo::Source::Reader(reader), &sopts, &bars)?;
     let t = Instant::now();
-    let outcome = isotopo::simplify::simplify(&mut masks, &sopts, &info.affine, &bars)?;
-    let t_simplify = t.elapsed().as_secs_f64();
-    let after = masks.genus(opts.connectivity)?;
-    // Closures are checked one by one; check the whole volume too before writing anything.
-    if after.b0 != before.b0 || after.b2 != before.b2 {
-        return Err(Error::Internal(format!(
-            "simplification changed the solid's components or cavities (b0 {} -> {}, b2 {} -> {}); nothing written",
-            before.b0, after.b0, before.b2, after.b2
-        )));
-    }
-    if after.b1 as usize != outcome.kept.len() {
-        return Err(Error::Internal(format!(
-            "genus after is {} but the last sweep kept {} handles; nothing written",
-            after.b1,
-            outcome.kept.len()
-        )));
-    }
-    let t = Instant::now();
-    isotopo::simplify::write_edited(reader.as_mut(), &a.output, &outcome.edits, &values, &bars)?;
+    done.write(&a.output, &bars)?;
     let t_write = t.elapsed().as_secs_f64();
     let mut mesh_genus = None;
     if let Some(p) = &a.mesh {
         let mut out = volume::open(&a.output, &a.input.options())?;
-        let mesh = isotopo::mesh::extract(out.as_mut(), &opts, false, &bars)?;
+        let mesh = isotopo::mesh::extract(out.as_mut(), &surface, false, &bars)?;
         mesh.write(p)?;
         mesh_genus = Some(mesh.closed_euler_characteristic());
     }
     let secs = t0.elapsed().as_secs_f64();
-    let mut v = isotopo::report::simplify_json(&outcome, &before, &after, &info);
-    let tau_json = if tau.is_finite() {
-        serde_json::json!(tau)
-    } else {
-        serde_json::json!("inf")
-    };
+    let mut v = done.report(&sopts);
     let extra = serde_json::json!({
-        "file": info.path,
         "output": a.output,
         "mesh": a.mesh,
-        "dims": info.dims,
-        "dtype": info.dtype.name(),
-        "iso": opts.iso,
-        "inside": inside_name(opts.inside),
-        "connectivity": opts.connectivity.number(),
-        "axis": axis.name(),
-        "tau": tau_json,
-        "metric": metric,
-        "mode": sopts.mode,
-        "max_ratio": a.max_ratio,
-        "wall_values": values,
         "mesh_euler_characteristic": mesh_genus,
         "seconds": secs,
-        "seconds_read": t_read,
-        "seconds_simplify": t_simplify,
         "seconds_write": t_write,
     });
     if let (Some(obj), serde_json::Value::Object(e)) = (v.as_object_mut(), extra) {
-        for (k, x) in e {
-            obj.insert(k, x);
-        }
+        obj.extend(e);
     }
     if let Some(p) = &a.report {
         isotopo::report::write_json(p, &v)?;
@@ -1198,13 +1144,18 @@ fn cmd_simplify(a: SimplifyArgs) -> Result<()> {
     if a.quiet {
         return Ok(());
     }
+    let (before, after, outcome, values) =
+        (&done.before, &done.after, &done.outcome, &done.wall_values);
+    let (t_read, t_simplify) = (done.seconds_read, done.seconds_simplify);
+    let opts = &surface;
+    let axis = sopts.axis;
     let collapse = v["collapse"].as_u64().unwrap_or(0);
     let pinch = v["pinch"].as_u64().unwrap_or(0);
     println!(
         "{}: iso {}, inside {}, connectivity {}, sweep along {}, tau {}{}{}",
         info.path.display(),
         num(opts.iso),
-        inside_name(opts.inside),
+        opts.inside.name(),
         opts.connectivity.number(),
         axis.name(),
         if tau.is_finite() {

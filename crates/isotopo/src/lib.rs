@@ -7,6 +7,31 @@
 //! small ones by writing a thin wall into the volume, so the result is always a valid manifold
 //! isosurface and the geometry away from each handle is untouched.
 //!
+//! ## Use
+//!
+//! One call per job, a volume in (a file or samples in memory), one options struct with
+//! documented defaults, a typed result out ([`simplify()`] → [`Simplified`]):
+//!
+//! ```
+//! use isotopo::{progress::NoProgress, volume::InMemoryVolume, SimplifyOptions, Source};
+//!
+//! // A ball with a one-voxel ring fused to its side: one small handle.
+//! let shape = |x: usize, y: usize, z: usize| {
+//!     let d = |a: usize, c: f64| a as f64 - c;
+//!     let ball = d(x, 8.0).hypot(d(y, 8.0)).hypot(d(z, 8.0)) < 5.0;
+//!     let ring = z == 8 && d(x, 13.0).abs().max(d(y, 8.0).abs()) == 1.0;
+//!     ball || ring
+//! };
+//! let volume = InMemoryVolume::from_mask([18, 17, 17], shape);
+//! let mut opts = SimplifyOptions::default(); // tau 20 voxel edges, fill or cut, along z
+//! opts.surface.iso = 0.5;
+//! let done = isotopo::simplify(Source::from(volume), &opts, &NoProgress)?;
+//! assert_eq!((done.before.b1, done.after.b1), (1, 0));
+//! # Ok::<(), isotopo::Error>(())
+//! ```
+//!
+//! `examples/simplify_in_memory.rs` does the same and takes the edited samples back.
+//!
 //! Data flows one way, one module per stage:
 //!
 //! ```text
@@ -25,6 +50,7 @@
 pub mod closure;
 pub mod error;
 pub mod geometry;
+pub mod jobs;
 pub mod loops;
 pub mod mesh;
 pub mod plots;
@@ -38,3 +64,5 @@ pub mod unionfind;
 pub mod volume;
 
 pub use error::{Error, Result};
+pub use jobs::{simplify, Simplified, Source};
+pub use simplify::SimplifyOptions;

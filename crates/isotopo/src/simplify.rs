@@ -26,9 +26,9 @@ use crate::loops::search::{FastMap, Graph, GraphCache};
 use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, Metric, SliceCache};
 use crate::progress::Progress;
 use crate::surface::Vertex;
-use crate::sweep::{Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
+use crate::sweep::{Axis, Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
 use crate::topology::cases::{cases, Connectivity};
-use crate::topology::genus::BBox;
+use crate::topology::genus::{BBox, SurfaceOptions};
 use crate::topology::Classifier;
 use crate::volume::{Affine, DType, Samples, SliceReader, VolumeInfo};
 use std::path::Path;
@@ -55,22 +55,63 @@ impl Mode {
     }
 }
 
+/// What to simplify and how. Every field has a default (`SimplifyOptions::default()`); check a
+/// hand-made one with [`SimplifyOptions::validate`] (the entry point [`crate::simplify()`] does).
 #[derive(Clone, Copy, Debug)]
 pub struct SimplifyOptions {
-    /// Handles whose size (the shorter loop, in voxel edges) is below this are removed;
+    /// The isosurface: isovalue (by default 0), inside above it (by default) and the solid's
+    /// connectivity (by default 6).
+    pub surface: SurfaceOptions,
+    /// The axis the sweep runs along; by default z. The result does not depend on it beyond
+    /// which of two equally short loops is closed.
+    pub axis: Axis,
+    /// Handles whose size (the shorter loop, in `metric` units) is below this are removed; by
+    /// default 20 voxel edges (the gap between noise and features on the real volumes);
     /// infinity removes every handle.
     pub tau: f64,
-    pub mode: Mode,
-    /// Keep handles whose longer loop is more than this many times the shorter.
-    pub max_ratio: Option<f64>,
-    pub conn: Connectivity,
-    /// What `tau` is measured in: voxel edges (the paper's unit, the default) or millimetres
-    /// along the interpolated surface (`--tau-mm`; the volume must have been read with its
-    /// fractions, else vertices sit at their edges' midpoints).
+    /// What `tau` is measured in: by default voxel edges (the paper's unit); or millimetres
+    /// along the interpolated surface, for anisotropic scans.
     pub metric: Metric,
+    /// Which closures are allowed; by default both filling and cutting.
+    pub mode: Mode,
+    /// Keep handles whose longer loop is more than this many times the shorter (long skinny
+    /// handles, often real); by default none are kept for it.
+    pub max_ratio: Option<f64>,
+    /// Planes held in memory at once (the rest wait in a scratch file); by default as many as
+    /// fit in 16 MiB, the whole volume when it fits; `Some(0)`: the whole volume.
+    pub max_slices: Option<usize>,
+}
+
+impl Default for SimplifyOptions {
+    fn default() -> SimplifyOptions {
+        SimplifyOptions {
+            surface: SurfaceOptions::default(),
+            axis: Axis::Z,
+            tau: 20.0,
+            metric: Metric::Edges,
+            mode: Mode::Both,
+            max_ratio: None,
+            max_slices: None,
+        }
+    }
 }
 
 impl SimplifyOptions {
+    /// Refuses options no simplification can follow: tau not positive, a ratio below 1, an
+    /// isovalue that is not a number.
+    pub fn validate(&self) -> Result<()> {
+        if self.tau.is_nan() || self.tau <= 0.0 {
+            return Err(Error::usage("tau must be positive (or inf)"));
+        }
+        if self.max_ratio.is_some_and(|r| r.is_nan() || r < 1.0) {
+            return Err(Error::usage("the maximum ratio must be at least 1"));
+        }
+        if !self.surface.iso.is_finite() {
+            return Err(Error::usage("the isovalue must be a finite number"));
+        }
+        Ok(())
+    }
+
     /// The searches' limits: longer loops cannot change a decision.
     pub fn limits(&self) -> Limits {
         Limits {
@@ -899,7 +940,7 @@ fn close_handle_by<'l>(
     (graph, refused): (&mut GraphCache, &mut usize),
     reach: WallReach,
 ) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
-    let conn = opts.conn;
+    let conn = opts.surface.connectivity;
     let partner_of = |which: LoopKind| match which {
         LoopKind::Reeb => l.cross.as_ref(),
         LoopKind::Cross => l.reeb.as_ref(),
@@ -980,7 +1021,7 @@ pub fn simplify(
     affine: &Affine,
     progress: &dyn Progress,
 ) -> Result<Outcome> {
-    let conn = opts.conn;
+    let conn = opts.surface.connectivity;
     let limits = opts.limits();
     let mut removed: Vec<Removed> = Vec::new();
     // First flip of each sample: local coordinates -> its original side.

@@ -21,7 +21,7 @@ use isotopo::progress::NoProgress;
 use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
 use isotopo::sweep::{find_handles, Axis, MaskVolume};
 use isotopo::topology::cases::cases;
-use isotopo::topology::Connectivity;
+use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::{Affine, InMemoryVolume};
 
 /// Inside samples of a volume, x fastest.
@@ -67,9 +67,11 @@ fn options(tau: f64, mode: Mode, conn: Connectivity) -> SimplifyOptions {
     SimplifyOptions {
         tau,
         mode,
-        max_ratio: None,
-        conn,
-        metric: isotopo::loops::Metric::Edges,
+        surface: SurfaceOptions {
+            connectivity: conn,
+            ..SurfaceOptions::default()
+        },
+        ..SimplifyOptions::default()
     }
 }
 
@@ -81,7 +83,7 @@ fn check(
     axis: Axis,
     opts: &SimplifyOptions,
 ) -> Result<(Outcome, Vec<bool>), String> {
-    let conn = opts.conn;
+    let conn = opts.surface.connectivity;
     let dims = vol.dims();
     let [nx, ny, _] = dims;
     let what = format!(

@@ -141,7 +141,7 @@ pub fn topological_numbers(vol: &MaskVolume, q: [i64; 3], conn: Connectivity) ->
 }
 
 /// The loop a peeled wall closes, and the box within which the ring it goes round is looked
-/// for (see [`Ring`]).
+/// for (a search through the side, then a linking number).
 pub struct PeelTarget<'a> {
     /// The loop's points (edge midpoints, volume-local), closed.
     pub loop_points: &'a [[f64; 3]],

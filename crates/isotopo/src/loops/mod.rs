@@ -683,7 +683,7 @@ fn cross_is_smaller(
     })
 }
 
-/// Measures both loops of a handle of the volume whose surface graph is `top` (see [`find`]),
+/// Measures both loops of a handle of the volume whose surface graph is `top` (see `find`),
 /// shortest in `limits.metric`; lengths in millimetres along the vertices' interpolated
 /// positions where the volume has its fractions.
 pub fn measure(

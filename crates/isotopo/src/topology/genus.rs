@@ -28,6 +28,17 @@ pub struct SurfaceOptions {
     pub connectivity: Connectivity,
 }
 
+impl Default for SurfaceOptions {
+    /// Isovalue 0, inside above it, connectivity 6.
+    fn default() -> SurfaceOptions {
+        SurfaceOptions {
+            iso: 0.0,
+            inside: Inside::Above,
+            connectivity: Connectivity::Six,
+        }
+    }
+}
+
 impl SurfaceOptions {
     pub fn classifier(&self, info: &VolumeInfo) -> Classifier {
         Classifier {

@@ -22,6 +22,16 @@ pub enum Inside {
     Below,
 }
 
+impl Inside {
+    /// `above` or `below`, as the command line and the reports spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Inside::Above => "above",
+            Inside::Below => "below",
+        }
+    }
+}
+
 /// Decides inside/outside for raw samples of a volume.
 #[derive(Clone, Copy, Debug)]
 pub struct Classifier {

@@ -1,0 +1,183 @@
+//! The entry point `isotopo::simplify` end to end: from samples in memory and from a file, the
+//! edited volume returned or written, checked with the cell-counting oracle; and the options a
+//! caller can get wrong refused.
+
+mod common;
+
+use common::oracle::betti;
+use common::{Rng, BOTH};
+use isotopo::progress::NoProgress;
+use isotopo::simplify::Mode;
+use isotopo::topology::SurfaceOptions;
+use isotopo::volume::{self, InMemoryVolume, ReadOptions};
+use isotopo::{SimplifyOptions, Source};
+
+fn noise(seed: u64) -> (InMemoryVolume, f64) {
+    let mut rng = Rng(seed);
+    let dims = [22, 19, 17];
+    let v = common::smoothed_noise(dims, 2, &mut rng);
+    let iso = common::quantile(&v, 0.45);
+    (common::volume_from(dims, &v), iso)
+}
+
+/// From memory: the edited volume's topology (by the oracle) is what the result says, the
+/// samples changed are exactly the edits, and tau inf leaves genus 0.
+#[test]
+fn simplify_in_memory_returns_the_edited_volume() {
+    for seed in [3u64, 11, 29] {
+        let (vol, iso) = noise(seed);
+        for conn in BOTH {
+            for tau in [8.0, f64::INFINITY] {
+                let opts = SimplifyOptions {
+                    surface: SurfaceOptions {
+                        iso,
+                        connectivity: conn,
+                        ..SurfaceOptions::default()
+                    },
+                    tau,
+                    ..SimplifyOptions::default()
+                };
+                let what = format!("seed {seed}, conn {}, tau {tau}", conn.number());
+                let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress)
+                    .unwrap_or_else(|e| panic!("{what}: {e}"));
+                let edited = done.edited().unwrap();
+                let before = betti(&common::mask_of(&vol, iso), vol.dims(), conn);
+                let after = betti(&common::mask_of(&edited, iso), vol.dims(), conn);
+                assert!(before.1 > 0, "{what}: no handle to remove");
+                assert_eq!(
+                    (before.0, before.1, before.2),
+                    (
+                        done.before.b0 as i64,
+                        done.before.b1 as i64,
+                        done.before.b2 as i64
+                    ),
+                    "{what}"
+                );
+                assert_eq!(
+                    (after.0, after.1, after.2),
+                    (
+                        done.after.b0 as i64,
+                        done.after.b1 as i64,
+                        done.after.b2 as i64
+                    ),
+                    "{what}"
+                );
+                assert_eq!((after.0, after.2), (before.0, before.2), "{what}");
+                if tau.is_infinite() {
+                    assert_eq!(after.1, 0, "{what}");
+                }
+                let [nx, ny, nz] = vol.dims();
+                let mut changed = Vec::new();
+                for z in 0..nz {
+                    for y in 0..ny {
+                        for x in 0..nx {
+                            if edited.get(x, y, z) != vol.get(x, y, z) {
+                                changed.push([x as i64, y as i64, z as i64]);
+                            }
+                        }
+                    }
+                }
+                let mut edits: Vec<[i64; 3]> = done.outcome.edits.iter().map(|e| e.0).collect();
+                edits.sort_by_key(|q| (q[2], q[1], q[0]));
+                assert_eq!(changed, edits, "{what}");
+            }
+        }
+    }
+}
+
+/// From a file to a file: what is written is what `edited` returns, and the input is untouched.
+#[test]
+fn simplify_a_file_writes_the_edited_volume() {
+    let dir = std::env::temp_dir().join(format!("isotopo-jobs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (vol, iso) = noise(5);
+    let input = dir.join("in.nii.gz");
+    let output = dir.join("out.nii.gz");
+    let mut w = volume::create(&input, &vol.info).unwrap();
+    for slice in &vol.slices {
+        w.write_slice(slice).unwrap();
+    }
+    w.finish(&vol.info).unwrap();
+    let original = std::fs::read(&input).unwrap();
+    let opts = SimplifyOptions {
+        surface: SurfaceOptions {
+            iso,
+            ..SurfaceOptions::default()
+        },
+        tau: f64::INFINITY,
+        mode: Mode::FillOnly,
+        ..SimplifyOptions::default()
+    };
+    let mut done = isotopo::simplify(Source::file(&input), &opts, &NoProgress).unwrap();
+    assert!(!done.outcome.edits.is_empty());
+    assert!(
+        done.outcome.edits.iter().all(|e| e.1),
+        "fill only sets samples inside"
+    );
+    done.write(&output, &NoProgress).unwrap();
+    let mut back = volume::open(&output, &ReadOptions::default()).unwrap();
+    let written = InMemoryVolume::from_reader(back.as_mut()).unwrap();
+    let edited = done.edited().unwrap();
+    let [nx, ny, nz] = vol.dims();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                assert_eq!(written.get(x, y, z), edited.get(x, y, z), "({x}, {y}, {z})");
+            }
+        }
+    }
+    assert_eq!(
+        std::fs::read(&input).unwrap(),
+        original,
+        "the input was changed"
+    );
+    // Writing over the input is refused.
+    assert!(done.write(&input, &NoProgress).is_err());
+    assert_eq!(
+        std::fs::read(&input).unwrap(),
+        original,
+        "the input was changed"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn options_no_simplification_can_follow_are_refused() {
+    let (vol, iso) = noise(7);
+    let good = SimplifyOptions {
+        surface: SurfaceOptions {
+            iso,
+            ..SurfaceOptions::default()
+        },
+        ..SimplifyOptions::default()
+    };
+    assert!(good.validate().is_ok());
+    let bad = [
+        SimplifyOptions { tau: 0.0, ..good },
+        SimplifyOptions { tau: -1.0, ..good },
+        SimplifyOptions {
+            tau: f64::NAN,
+            ..good
+        },
+        SimplifyOptions {
+            max_ratio: Some(0.5),
+            ..good
+        },
+        SimplifyOptions {
+            max_ratio: Some(f64::NAN),
+            ..good
+        },
+        SimplifyOptions {
+            surface: SurfaceOptions {
+                iso: f64::NAN,
+                ..good.surface
+            },
+            ..good
+        },
+    ];
+    for opts in bad {
+        assert!(opts.validate().is_err(), "{opts:?}");
+        let r = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress);
+        assert!(r.is_err(), "{opts:?}");
+    }
+}
