@@ -4,9 +4,9 @@
 mod progress;
 
 use clap::{Args, Parser, Subcommand};
-use isotopo::sweep::{Axis, HandleReport, MaskVolume};
+use isotopo::sweep::Axis;
 use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
-use isotopo::volume::{self, DType, Endian, ReadOptions, SliceReader};
+use isotopo::volume::{self, DType, Endian, ReadOptions};
 use isotopo::{Error, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -575,29 +575,14 @@ fn to_json(v: &impl serde::Serialize) -> Result<String> {
 
 fn cmd_genus(a: GenusArgs) -> Result<()> {
     let opts = a.surface.options()?;
-    let mut reader = a.input.open()?;
-    let info = reader.info().clone();
     let bars = progress::Bars::new(a.quiet || a.json);
-    let t = Instant::now();
-    let r = isotopo::topology::genus(reader.as_mut(), &opts, &bars)?;
-    let secs = t.elapsed().as_secs_f64();
+    let source = isotopo::Source::Reader(a.input.open()?);
+    let topology = isotopo::genus(source, &opts, &bars)?;
     if a.json {
-        let v = serde_json::json!({
-            "file": info.path,
-            "dims": info.dims,
-            "iso": opts.iso,
-            "inside": opts.inside.name(),
-            "connectivity": opts.connectivity.number(),
-            "b0": r.b0,
-            "b1": r.b1,
-            "b2": r.b2,
-            "chi": r.chi,
-            "surfaces": r.surfaces,
-            "seconds": secs,
-        });
-        println!("{}", to_json(&v)?);
+        println!("{}", to_json(&topology.to_json(&opts))?);
         return Ok(());
     }
+    let (info, r, secs) = (&topology.info, &topology.solid, topology.seconds);
     println!(
         "{}: iso {}, inside {}, connectivity {}",
         info.path.display(),
@@ -695,48 +680,21 @@ fn cmd_mesh(a: MeshArgs) -> Result<()> {
     Ok(())
 }
 
-/// Classifies the volume (within the window of planes asked for) and sweeps it for handles.
-fn sweep(
-    reader: &mut dyn SliceReader,
-    opts: &SurfaceOptions,
-    axis: Axis,
-    window: &WindowArgs,
-    with_fractions: bool,
-    bars: &progress::Bars,
-) -> Result<(MaskVolume, HandleReport)> {
-    let mut masks = if with_fractions {
-        MaskVolume::from_reader_with_fractions(reader, opts, axis, window.max_slices, bars)?
-    } else {
-        MaskVolume::from_reader(reader, opts, axis, window.max_slices, bars)?
-    };
-    let report = isotopo::sweep::find_handles(&mut masks, axis, opts.connectivity, bars)?;
-    Ok((masks, report))
-}
-
 fn cmd_handles(a: HandlesArgs) -> Result<()> {
     let opts = a.surface.options()?;
     let axis = a.axis.axis();
-    let mut reader = a.input.open()?;
-    let info = reader.info().clone();
     let bars = progress::Bars::new(a.quiet || a.json);
-    let t = Instant::now();
-    let (_, report) = sweep(reader.as_mut(), &opts, axis, &a.window, false, &bars)?;
-    let secs = t.elapsed().as_secs_f64();
-    let handles = isotopo::report::handles_json(&report, &info);
+    let aopts = isotopo::AnalyzeOptions {
+        surface: opts,
+        axis,
+        max_slices: a.window.max_slices,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    let found = isotopo::handles(isotopo::Source::Reader(a.input.open()?), &aopts, &bars)?;
+    let (info, report, secs) = (&found.info, &found.report, found.seconds);
+    let handles = isotopo::report::handles_json(report, info);
     if a.json {
-        let v = serde_json::json!({
-            "file": info.path,
-            "dims": info.dims,
-            "iso": opts.iso,
-            "inside": opts.inside.name(),
-            "connectivity": opts.connectivity.number(),
-            "axis": axis.name(),
-            "genus": report.genus,
-            "handles": handles,
-            "surfaces": report.surfaces,
-            "seconds": secs,
-        });
-        println!("{}", to_json(&v)?);
+        println!("{}", to_json(&found.to_json(&aopts))?);
         return Ok(());
     }
     let reeb = report
@@ -805,9 +763,10 @@ fn cmd_handles(a: HandlesArgs) -> Result<()> {
 }
 
 fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
+    use isotopo::jobs::Lengths;
     let opts = a.surface.options()?;
     let axis = a.axis.axis();
-    let mut reader = a.input.open()?;
+    let reader = a.input.open()?;
     let info = reader.info().clone();
     if let Some(p) = &a.loops {
         volume::check_output_path(p, &info)?;
@@ -820,44 +779,30 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let tau = positive(a.tau, "--tau")?;
     let tau_mm = positive(a.tau_mm, "--tau-mm")?;
-    let limits = isotopo::loops::Limits {
-        below: tau.unwrap_or(f64::INFINITY),
-        ..isotopo::loops::Limits::NONE
+    let lengths = match a.metric {
+        Some(MetricArg::Edges) => Lengths::Edges,
+        Some(MetricArg::Mm) => Lengths::Millimetres,
+        Some(MetricArg::Both) => Lengths::Both,
+        None => match (tau, tau_mm) {
+            (Some(_), Some(_)) => Lengths::Both,
+            (None, Some(_)) => Lengths::Millimetres,
+            _ => Lengths::Edges,
+        },
     };
-    let limits_mm = isotopo::loops::Limits {
-        below: tau_mm.unwrap_or(f64::INFINITY),
-        metric: isotopo::loops::Metric::Millimetres,
-        size_only: false,
+    let aopts = isotopo::AnalyzeOptions {
+        surface: opts,
+        axis,
+        max_slices: a.window.max_slices,
+        tau,
+        tau_mm,
+        lengths,
     };
     let bars = progress::Bars::new(a.quiet || a.json || a.csv);
-    let t = Instant::now();
-    let metric = a.metric.unwrap_or(match (tau, tau_mm) {
-        (Some(_), Some(_)) => MetricArg::Both,
-        (None, Some(_)) => MetricArg::Mm,
-        _ => MetricArg::Edges,
-    });
-    let mm = metric != MetricArg::Edges;
-    let (mut masks, report) = sweep(reader.as_mut(), &opts, axis, &a.window, mm, &bars)?;
-    let t_sweep = t.elapsed().as_secs_f64();
-    let mut measure = |limits| {
-        isotopo::loops::measure_all(
-            &mut masks,
-            &report.handles,
-            opts.connectivity,
-            &info.affine,
-            limits,
-            &bars,
-        )
-    };
-    let loops_mm = if mm { Some(measure(limits_mm)?) } else { None };
-    let loops = if metric != MetricArg::Mm {
-        measure(limits)?
-    } else {
-        loops_mm.clone().unwrap_or_default()
-    };
-    let secs = t.elapsed().as_secs_f64();
+    let analysis = isotopo::analyze(isotopo::Source::Reader(reader), &aopts, &bars)?;
+    let (report, loops) = (&analysis.report, &analysis.loops);
+    let (secs, t_sweep) = (analysis.seconds, analysis.seconds_sweep);
     if let Some(p) = &a.loops {
-        isotopo::report::write_loops(p, &loops, &info.affine)?;
+        isotopo::report::write_loops(p, loops, &info.affine)?;
     }
     let name = info
         .path
@@ -880,28 +825,11 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
         plot_files = isotopo::plots::write(dir, &name, &points, tau)?;
     }
     if a.json {
-        let v = serde_json::json!({
-            "file": info.path,
-            "dims": info.dims,
-            "iso": opts.iso,
-            "inside": opts.inside.name(),
-            "connectivity": opts.connectivity.number(),
-            "axis": axis.name(),
-            "tau": tau.filter(|t| t.is_finite()),
-            "genus": report.genus,
-            "handles": isotopo::report::analysis_json(&report, &info, &loops, loops_mm.as_deref()),
-            "surfaces": report.surfaces,
-            "seconds": secs,
-            "seconds_sweep": t_sweep,
-        });
-        println!("{}", to_json(&v)?);
+        println!("{}", to_json(&analysis.to_json(&aopts))?);
         return Ok(());
     }
     if a.csv {
-        print!(
-            "{}",
-            isotopo::report::analysis_csv(&report, &info, &loops, loops_mm.as_deref())
-        );
+        print!("{}", analysis.to_csv());
         return Ok(());
     }
     let reeb = report
@@ -978,7 +906,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
     if beyond > 0 {
         println!(
             "  {:>8} {:<40} {}",
-            format!(">={}", num(limits.below)),
+            format!(">={}", num(tau.unwrap_or(f64::INFINITY))),
             "#".repeat((beyond * 40).div_ceil(maxc)),
             beyond
         );
@@ -1008,7 +936,7 @@ fn cmd_analyze(a: AnalyzeArgs) -> Result<()> {
                 "void"
             }
         ),
-        None => format!(">={}", num(limits.below)),
+        None => format!(">={}", num(tau.unwrap_or(f64::INFINITY))),
     };
     for &i in order.iter().take(shown) {
         let h = &report.handles[i];

@@ -16,11 +16,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::loops::Metric;
+use crate::loops::{HandleLoops, Limits, Metric};
 use crate::progress::Progress;
 use crate::simplify::{Outcome, SimplifyOptions, WallValues};
-use crate::sweep::MaskVolume;
-use crate::topology::genus::GenusReport;
+use crate::sweep::{Axis, HandleReport, MaskVolume};
+use crate::topology::genus::{GenusReport, SurfaceOptions};
 use crate::volume::{self, InMemoryVolume, ReadOptions, SliceReader, VolumeInfo};
 
 /// Where a job reads its volume from.
@@ -54,6 +54,270 @@ impl Source {
 impl From<InMemoryVolume> for Source {
     fn from(v: InMemoryVolume) -> Source {
         Source::Memory(v)
+    }
+}
+
+/// The topology of the solid and of each of its surfaces (see [`genus`]).
+#[derive(Clone, Debug)]
+pub struct Topology {
+    /// The input's header.
+    pub info: VolumeInfo,
+    /// b0, b1 (the total genus), b2, the Euler characteristic and the surfaces.
+    pub solid: GenusReport,
+    pub seconds: f64,
+}
+
+/// Counts components, handles and cavities of the solid in one streaming pass over the volume
+/// (memory: two planes).
+pub fn genus(source: Source, opts: &SurfaceOptions, progress: &dyn Progress) -> Result<Topology> {
+    check_surface(opts)?;
+    let mut input = source.open()?;
+    let info = input.info().clone();
+    let t = Instant::now();
+    let solid = crate::topology::genus(input.as_mut(), opts, progress)?;
+    Ok(Topology {
+        info,
+        solid,
+        seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
+impl Topology {
+    /// The `genus --json` report.
+    pub fn to_json(&self, opts: &SurfaceOptions) -> serde_json::Value {
+        let r = &self.solid;
+        serde_json::json!({
+            "file": self.info.path,
+            "dims": self.info.dims,
+            "iso": opts.iso,
+            "inside": opts.inside.name(),
+            "connectivity": opts.connectivity.number(),
+            "b0": r.b0,
+            "b1": r.b1,
+            "b2": r.b2,
+            "chi": r.chi,
+            "surfaces": r.surfaces,
+            "seconds": self.seconds,
+        })
+    }
+}
+
+fn check_surface(opts: &SurfaceOptions) -> Result<()> {
+    if !opts.iso.is_finite() {
+        return Err(Error::usage("the isovalue must be a finite number"));
+    }
+    Ok(())
+}
+
+/// Options of [`handles`] and [`analyze`].
+#[derive(Clone, Copy, Debug)]
+pub struct AnalyzeOptions {
+    /// The isosurface: isovalue (by default 0), inside above it (by default), connectivity 6
+    /// (by default).
+    pub surface: SurfaceOptions,
+    /// The axis the sweep runs along; by default z.
+    pub axis: Axis,
+    /// Planes held in memory at once; by default as many as fit in 16 MiB (see
+    /// [`SimplifyOptions::max_slices`]).
+    pub max_slices: Option<usize>,
+    /// Loops are measured exactly up to this length in voxel edges; a longer one is reported
+    /// as "at least this long". By default all are measured exactly.
+    pub tau: Option<f64>,
+    /// The same in millimetres, for the lengths in millimetres.
+    pub tau_mm: Option<f64>,
+    /// Which lengths the loops are shortest in: by default voxel edges.
+    pub lengths: Lengths,
+}
+
+/// Which metric [`analyze`] measures loops in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Lengths {
+    /// Voxel edges along the surface graph (as `tau` counts).
+    #[default]
+    Edges,
+    /// Millimetres along the interpolated surface.
+    Millimetres,
+    /// Both: each handle's loops shortest in each.
+    Both,
+}
+
+impl Default for AnalyzeOptions {
+    fn default() -> AnalyzeOptions {
+        AnalyzeOptions {
+            surface: SurfaceOptions::default(),
+            axis: Axis::Z,
+            max_slices: None,
+            tau: None,
+            tau_mm: None,
+            lengths: Lengths::Edges,
+        }
+    }
+}
+
+impl AnalyzeOptions {
+    /// Refuses a limit that is not positive, or an isovalue that is not a number.
+    pub fn validate(&self) -> Result<()> {
+        check_surface(&self.surface)?;
+        for t in [self.tau, self.tau_mm].into_iter().flatten() {
+            if t.is_nan() || t <= 0.0 {
+                return Err(Error::usage("tau must be positive (or inf)"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Every handle of the isosurface, located by the sweep (see [`handles`]).
+pub struct Handles {
+    pub info: VolumeInfo,
+    /// The handles (each with its Reeb cycle or mini-volume) and the genus they add up to.
+    pub report: HandleReport,
+    pub seconds: f64,
+    masks: MaskVolume,
+}
+
+/// Locates every handle of the isosurface: a sweep builds the Reeb graph of the contours; each
+/// independent cycle is a handle, and handles within one ribbon are found in small volumes.
+pub fn handles(source: Source, opts: &AnalyzeOptions, progress: &dyn Progress) -> Result<Handles> {
+    opts.validate()?;
+    let mut input = source.open()?;
+    let info = input.info().clone();
+    let t = Instant::now();
+    let read = if opts.lengths == Lengths::Edges {
+        MaskVolume::from_reader
+    } else {
+        MaskVolume::from_reader_with_fractions
+    };
+    let mut masks = read(
+        input.as_mut(),
+        &opts.surface,
+        opts.axis,
+        opts.max_slices,
+        progress,
+    )?;
+    let report =
+        crate::sweep::find_handles(&mut masks, opts.axis, opts.surface.connectivity, progress)?;
+    Ok(Handles {
+        info,
+        report,
+        seconds: t.elapsed().as_secs_f64(),
+        masks,
+    })
+}
+
+impl Handles {
+    /// The `handles --json` report.
+    pub fn to_json(&self, opts: &AnalyzeOptions) -> serde_json::Value {
+        let mut v = header(&self.info, opts);
+        v["genus"] = self.report.genus.into();
+        v["handles"] = crate::report::handles_json(&self.report, &self.info).into();
+        v["surfaces"] = serde_json::json!(self.report.surfaces);
+        v["seconds"] = self.seconds.into();
+        v
+    }
+}
+
+/// The volume and options every report starts with.
+fn header(info: &VolumeInfo, opts: &AnalyzeOptions) -> serde_json::Value {
+    let s = &opts.surface;
+    serde_json::json!({
+        "file": info.path,
+        "dims": info.dims,
+        "iso": s.iso,
+        "inside": s.inside.name(),
+        "connectivity": s.connectivity.number(),
+        "axis": opts.axis.name(),
+    })
+}
+
+/// Every handle with its two loops (see [`analyze`]).
+pub struct Analysis {
+    pub info: VolumeInfo,
+    pub report: HandleReport,
+    /// Each handle's Reeb loop and cross loop, in the handles' order, shortest in voxel edges
+    /// (or in millimetres when only those were asked for).
+    pub loops: Vec<HandleLoops>,
+    /// Shortest in millimetres, when asked for.
+    pub loops_mm: Option<Vec<HandleLoops>>,
+    /// Seconds for the sweep, and in all.
+    pub seconds_sweep: f64,
+    pub seconds: f64,
+}
+
+/// Locates every handle and measures its two loops (the paper's Reeb loop and cross loop),
+/// each the shortest on the whole surface: the handle's size is the shorter.
+pub fn analyze(source: Source, opts: &AnalyzeOptions, progress: &dyn Progress) -> Result<Analysis> {
+    let t = Instant::now();
+    let Handles {
+        info,
+        report,
+        mut masks,
+        ..
+    } = handles(source, opts, progress)?;
+    let seconds_sweep = t.elapsed().as_secs_f64();
+    let edges = Limits {
+        below: opts.tau.unwrap_or(f64::INFINITY),
+        ..Limits::NONE
+    };
+    let mm = Limits {
+        below: opts.tau_mm.unwrap_or(f64::INFINITY),
+        metric: Metric::Millimetres,
+        size_only: false,
+    };
+    let conn = opts.surface.connectivity;
+    let mut measure = |limits| {
+        crate::loops::measure_all(
+            &mut masks,
+            &report.handles,
+            conn,
+            &info.affine,
+            limits,
+            progress,
+        )
+    };
+    let loops_mm = match opts.lengths {
+        Lengths::Edges => None,
+        _ => Some(measure(mm)?),
+    };
+    let loops = match (opts.lengths, &loops_mm) {
+        (Lengths::Millimetres, Some(x)) => x.clone(),
+        _ => measure(edges)?,
+    };
+    Ok(Analysis {
+        info,
+        report,
+        loops,
+        loops_mm,
+        seconds_sweep,
+        seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
+impl Analysis {
+    /// The `analyze --json` report: every handle with both loops (and in millimetres too when
+    /// measured so).
+    pub fn to_json(&self, opts: &AnalyzeOptions) -> serde_json::Value {
+        let (info, report) = (&self.info, &self.report);
+        let mut v = header(info, opts);
+        v["tau"] = serde_json::json!(opts.tau.filter(|t| t.is_finite()));
+        v["genus"] = report.genus.into();
+        v["handles"] =
+            crate::report::analysis_json(report, info, &self.loops, self.loops_mm.as_deref())
+                .into();
+        v["surfaces"] = serde_json::json!(report.surfaces);
+        v["seconds"] = self.seconds.into();
+        v["seconds_sweep"] = self.seconds_sweep.into();
+        v
+    }
+
+    /// The `analyze --csv` table: a row per handle.
+    pub fn to_csv(&self) -> String {
+        crate::report::analysis_csv(
+            &self.report,
+            &self.info,
+            &self.loops,
+            self.loops_mm.as_deref(),
+        )
     }
 }
 

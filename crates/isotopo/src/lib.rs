@@ -64,5 +64,8 @@ pub mod unionfind;
 pub mod volume;
 
 pub use error::{Error, Result};
-pub use jobs::{simplify, Simplified, Source};
+pub use jobs::{
+    analyze, genus, handles, simplify, Analysis, AnalyzeOptions, Handles, Simplified, Source,
+    Topology,
+};
 pub use simplify::SimplifyOptions;
