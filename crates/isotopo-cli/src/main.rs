@@ -4,7 +4,7 @@
 mod progress;
 
 use clap::{Args, Parser, Subcommand};
-use isotopo::sweep::Axis;
+use isotopo::grid::Axis;
 use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
 use isotopo::volume::{self, DType, Endian, ReadOptions};
 use isotopo::{Error, Result};

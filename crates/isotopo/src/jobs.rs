@@ -16,10 +16,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::grid::{Axis, MaskVolume};
 use crate::loops::{HandleLoops, Limits, Metric};
 use crate::progress::Progress;
 use crate::simplify::{Outcome, SimplifyOptions, WallValues};
-use crate::sweep::{Axis, HandleReport, MaskVolume};
+use crate::sweep::HandleReport;
 use crate::topology::genus::{GenusReport, SurfaceOptions};
 use crate::volume::{self, InMemoryVolume, ReadOptions, SliceReader, VolumeInfo};
 

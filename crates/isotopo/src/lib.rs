@@ -39,17 +39,29 @@
 //!   -> handles -> Reeb loop / cross loop -> closures -> edited volume (+ mesh, report)
 //! ```
 //!
+//! Each module uses only those listed before it (`scripts/check_layout.py` checks that no two
+//! import each other, directly or not):
+//!
 //! - [`volume`]: reading and writing NIfTI, NRRD, MGH/MGZ, MetaImage, NumPy, raw and TIFF,
-//!   streamed by z-slice.
+//!   streamed by z-slice; the affine and voxel boxes.
 //! - [`topology`]: the cube cases derived from the digital-topology rule, surfels of a slice, and
-//!   the streaming genus pass.
+//!   the streaming genus pass; [`mesh`]: the isosurface as a mesh.
+//! - [`grid`]: the volume as inside bits in a window of planes, in the sweep's frame, with the
+//!   fractions along crossing edges.
+//! - [`surface`]: the isosurface as a graph (vertices on cube edges), where its vertices lie,
+//!   and the searches on it.
+//! - [`sweep`]: contours, ribbons and the Reeb graph: every handle located.
+//! - [`loops`]: each handle's Reeb loop and cross loop, the shortest on the whole surface.
+//! - [`closure`]: walls across loops, written into the volume and verified.
+//! - [`simplify`](mod@simplify): sweep, measure, close, rewind, until no handle below tau is left.
+//! - [`report`], [`plots`]: JSON, CSV and plots of the results; [`jobs`]: the entry points.
 
 // Index loops read better than iterator chains in the matrix and grid code here.
 #![allow(clippy::needless_range_loop)]
 
 pub mod closure;
 pub mod error;
-pub mod geometry;
+pub mod grid;
 pub mod jobs;
 pub mod loops;
 pub mod mesh;

@@ -210,7 +210,7 @@ pub fn handles_json(report: &HandleReport, info: &VolumeInfo) -> Vec<Value> {
         .map(|h| {
             let l = &h.located;
             let frame = match &l.volume {
-                CycleVolume::Top => crate::sweep::Frame::for_axis(axis),
+                CycleVolume::Top => crate::grid::Frame::for_axis(axis),
                 CycleVolume::Mini(v) => v.frame,
             };
             // Levels are along the cycle volume's own sweep axis, reported in original indices.

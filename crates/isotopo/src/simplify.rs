@@ -21,16 +21,17 @@
 
 use crate::closure::{self, base_thickness, opposite, Operation};
 use crate::error::{Error, Result};
-use crate::geometry::Geometry;
-use crate::loops::search::{FastMap, Graph, GraphCache};
+use crate::grid::{Axis, MaskVolume};
 use crate::loops::{self, Encloses, HandleLoops, Limits, Loop, Metric, SliceCache};
 use crate::progress::Progress;
+use crate::surface::geometry::Geometry;
+use crate::surface::search::{FastMap, Graph, GraphCache};
 use crate::surface::Vertex;
-use crate::sweep::{Axis, Handle, HandleKind, LocatedHandle, MaskVolume, Sweeper};
+use crate::sweep::{Handle, HandleKind, LocatedHandle, Sweeper};
 use crate::topology::cases::{cases, Connectivity};
-use crate::topology::genus::{BBox, SurfaceOptions};
+use crate::topology::genus::SurfaceOptions;
 use crate::topology::Classifier;
-use crate::volume::{Affine, DType, Samples, SliceReader, VolumeInfo};
+use crate::volume::{Affine, BBox, DType, Samples, SliceReader, VolumeInfo};
 use std::path::Path;
 
 /// Which closures are allowed.
@@ -784,7 +785,7 @@ fn peel_centre(points: &[[f64; 3]], partner: &[Vertex]) -> [f64; 3] {
         .min_by(|a, b| a.0.total_cmp(&b.0));
     match crossing {
         Some((_, p)) => p,
-        None => closure::centroid(points),
+        None => crate::surface::geometry::centroid(points),
     }
 }
 

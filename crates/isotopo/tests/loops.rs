@@ -4,11 +4,12 @@
 mod common;
 
 use common::{shapes, Rng, BOTH};
-use isotopo::loops::search::{is_nonseparating, Everywhere, Graph};
+use isotopo::grid::{Axis, MaskVolume};
 use isotopo::loops::{measure, Encloses, HandleLoops, Limits, Metric, SliceCache};
 use isotopo::progress::NoProgress;
+use isotopo::surface::search::{is_nonseparating, Everywhere, Graph};
 use isotopo::surface::Vertex;
-use isotopo::sweep::{find_handles, Axis, HandleReport, MaskVolume};
+use isotopo::sweep::{find_handles, HandleReport};
 use isotopo::topology::cases::cases;
 use isotopo::topology::Connectivity;
 use isotopo::volume::{Affine, InMemoryVolume};

@@ -15,11 +15,12 @@ mod common;
 use common::oracle::betti;
 use common::systole::systole;
 use common::{shapes, Rng, BOTH};
-use isotopo::loops::search::Graph;
+use isotopo::grid::{Axis, MaskVolume};
 use isotopo::loops::{measure, Limits, SliceCache};
 use isotopo::progress::NoProgress;
 use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
-use isotopo::sweep::{find_handles, Axis, MaskVolume};
+use isotopo::surface::search::Graph;
+use isotopo::sweep::find_handles;
 use isotopo::topology::cases::cases;
 use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::{Affine, InMemoryVolume};
@@ -516,7 +517,7 @@ fn max_ratio_keeps_long_skinny_handles() {
 /// edits, so the same output bytes), along z and along x (rows gathered into sweep planes).
 #[test]
 fn out_of_core_gives_the_same_result() {
-    use isotopo::sweep::MIN_WINDOW;
+    use isotopo::grid::MIN_WINDOW;
     let mut rng = Rng(0x00c0);
     let mut cases: Vec<(String, InMemoryVolume, f64)> = vec![
         ("menger 2".into(), shapes::menger(2), 0.0),

@@ -5,8 +5,9 @@
 mod common;
 
 use common::{shapes, Rng, BOTH};
+use isotopo::grid::{Axis, MaskVolume};
 use isotopo::progress::NoProgress;
-use isotopo::sweep::{find_handles, Axis, HandleKind, HandleReport, MaskVolume};
+use isotopo::sweep::{find_handles, HandleKind, HandleReport};
 use isotopo::topology::Connectivity;
 use isotopo::volume::InMemoryVolume;
 
@@ -257,7 +258,7 @@ fn rewinding_reproduces_the_sweep() {
 /// handles, in the same places, along every axis; the window stays bounded.
 #[test]
 fn out_of_core_sweep_finds_the_same_handles() {
-    use isotopo::sweep::MIN_WINDOW;
+    use isotopo::grid::MIN_WINDOW;
     for s in shapes::all()
         .into_iter()
         .filter(|s| s.volume.dims()[2] > MIN_WINDOW)

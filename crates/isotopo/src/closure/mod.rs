@@ -26,11 +26,12 @@ mod peel;
 
 pub use peel::{peel_walls, topological_numbers, PeelTarget};
 
-use crate::loops::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
+use crate::grid::MaskVolume;
+use crate::surface::geometry::centroid;
+use crate::surface::search::{Everywhere, FastMap, Graph, GraphCache, InBox, Reach, Region};
 use crate::surface::{vertex_of, PieceRef, Vertex};
-use crate::sweep::MaskVolume;
 use crate::topology::cases::{cases, Connectivity};
-use crate::topology::genus::BBox;
+use crate::volume::BBox;
 
 /// What a closure does to the handle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -128,14 +129,6 @@ pub fn point_triangle_dist2(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) 
     };
     let d = sub(p, closest);
     dot(d, d)
-}
-
-/// The mean of the points: the apex of a loop's spanning fan.
-pub fn centroid(points: &[[f64; 3]]) -> [f64; 3] {
-    let n = points.len() as f64;
-    points.iter().fold([0.0; 3], |s, p| {
-        [s[0] + p[0] / n, s[1] + p[1] / n, s[2] + p[2] / n]
-    })
 }
 
 /// Samples (volume-local coordinates) within `d` of the fan spanning the closed polyline

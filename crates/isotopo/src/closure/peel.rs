@@ -24,8 +24,8 @@
 //! cannot fail. It is still verified by [`super::close`] like any other wall.
 
 use super::Operation;
-use crate::loops::search::FastMap;
-use crate::sweep::MaskVolume;
+use crate::grid::MaskVolume;
+use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 
 /// The 26 neighbours of a sample, and for each its adjacencies within the neighbourhood.
@@ -454,7 +454,7 @@ fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [b
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::Frame;
+    use crate::grid::Frame;
 
     #[test]
     fn simple_samples_of_a_bar() {

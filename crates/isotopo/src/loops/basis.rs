@@ -9,7 +9,7 @@
 //! rank 2g (the rank of the form restricted to their span is at most its dimension, and is 2g
 //! on all of H1).
 
-use super::search::{crossing_parity, FastMap, Graph};
+use crate::surface::search::{crossing_parity, FastMap, Graph};
 use crate::surface::Vertex;
 
 /// Rank (mod 2) of the matrix of crossing parities of the closed curves. Curves that share no

@@ -13,19 +13,19 @@
 //! links it once when pushed into the material.
 
 pub mod basis;
-pub mod search;
 
 use crate::error::Result;
-use crate::geometry::Geometry;
-use crate::surface::{PieceRef, Vertex};
-use crate::sweep::{CycleVolume, Frame, Handle, MaskVolume, NodeKind};
-use crate::topology::cases::{cases, Connectivity};
-use crate::topology::slice::SliceSurfels;
-use crate::volume::Affine;
-use search::{
+use crate::grid::{Frame, MaskVolume};
+use crate::surface::geometry::Geometry;
+use crate::surface::search::{
     any_odd_loop, odd_loop, odd_simple_loop, path_to, shortest_odd_loop, Everywhere, FastMap,
     Graph, InBox, OddLoop, PieceSet, Region,
 };
+use crate::surface::{PieceRef, Vertex};
+use crate::sweep::{CycleVolume, Handle, NodeKind};
+use crate::topology::cases::{cases, Connectivity};
+use crate::topology::slice::SliceSurfels;
+use crate::volume::Affine;
 
 /// What a loop's spanning disk would pass through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -80,8 +80,8 @@ pub struct HandleLoops {
 
 impl HandleLoops {
     /// Voxel bounds of the loops' points (original coordinates), if any loop was found.
-    pub fn bbox(&self) -> Option<crate::topology::genus::BBox> {
-        let mut b = crate::topology::genus::BBox::EMPTY;
+    pub fn bbox(&self) -> Option<crate::volume::BBox> {
+        let mut b = crate::volume::BBox::EMPTY;
         let mut any = false;
         for l in self.reeb.iter().chain(self.cross.iter()) {
             for p in &l.points {
@@ -188,7 +188,13 @@ impl Searcher<'_> {
                 odd_loop(top, curve, &Everywhere, limit)
             }
             Metric::Millimetres => {
-                let r = search::odd_loop_mm(top, &self.geometry, curve, &Everywhere, below);
+                let r = crate::surface::search::odd_loop_mm(
+                    top,
+                    &self.geometry,
+                    curve,
+                    &Everywhere,
+                    below,
+                );
                 OddLoop {
                     found: r.found.map(|(lp, _)| lp),
                     exact: r.exact,
@@ -323,7 +329,7 @@ impl SliceCache {
         if let Some(c) = self.contours.get(&(w, start.key())) {
             return Some(c.clone());
         }
-        let walked = crate::sweep::walk_contour(top, start, w)?;
+        let walked = crate::surface::search::walk_contour(top, start, w)?;
         let keys: FastMap<u64, ()> = walked.iter().map(|v| (v.key(), ())).collect();
         let keys = std::sync::Arc::new(keys);
         if self.contour_vertices + keys.len() > MAX_CONTOUR_VERTICES {
@@ -831,7 +837,7 @@ pub fn encloses(vol: &MaskVolume, lp: &[Vertex], partner: &[Vertex]) -> Encloses
 /// spans empty space; one round a bar spans material.
 pub fn encloses_by_fan(vol: &MaskVolume, lp: &[Vertex]) -> Encloses {
     let points = midpoints(lp);
-    let c = crate::closure::centroid(&points);
+    let c = crate::surface::geometry::centroid(&points);
     let (mut inside, mut outside) = (0usize, 0usize);
     const STEPS: usize = 4;
     for i in 0..points.len() {

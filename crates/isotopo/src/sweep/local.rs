@@ -6,7 +6,7 @@
 //! its slices (small handles whose loops run through the caps, or the tunnel inside one cube).
 //! Such a ribbon of the mini-volume is small, so the direct search is cheap.
 
-use crate::loops::search::{key, odd_loop_with_parities, FastMap, Graph, Region};
+use crate::surface::search::{key, odd_loop_with_parities, FastMap, Graph, Region};
 use crate::surface::{Around, PieceRef, Vertex};
 use crate::unionfind::UnionFind;
 use std::collections::VecDeque;

@@ -18,7 +18,7 @@
 //!   layer s-2    . . . . . . . . .      all outside: the outer contour closed
 //! ```
 
-use super::planes::{Frame, MaskVolume};
+use crate::grid::{Frame, MaskVolume};
 use crate::topology::Connectivity;
 
 /// Nesting depth of every sample of a 2-D inside grid (`nu × nv`, u fastest), whose border is

@@ -21,20 +21,19 @@
 pub mod contours;
 pub mod local;
 pub mod mini;
-pub mod planes;
 pub mod reeb;
 
-pub use planes::{window_for, Axis, Frame, MaskVolume, MIN_WINDOW};
 pub use reeb::{Node, NodeKind, ReebGraph};
 
 use crate::error::{Error, Result};
-use crate::loops::search::{Graph, PieceSet};
+use crate::grid::{Axis, Frame, MaskVolume};
 use crate::progress::Progress;
+use crate::surface::search::{walk_contour, Graph, PieceSet};
 use crate::surface::{vertex_of, Vertex};
 use crate::topology::cases::{cases, Case, Connectivity};
-use crate::topology::genus::BBox;
 use crate::topology::slice::SliceSurfels;
 use crate::unionfind::UnionFind;
+use crate::volume::BBox;
 use std::sync::Arc;
 
 /// How a handle was found.
@@ -168,33 +167,6 @@ fn contour_vertex(
     let cube = s.cubes[list[k] as usize];
     let (e, _) = table[cube.case as usize].face_segment[face][slot];
     vertex_of([cube.i as i64 - 1, cube.j as i64 - 1, s.z as i64], e)
-}
-
-/// The contour through `start` (a crossing on an edge lying in plane `w`), as its vertices in
-/// order: walk along the neighbours that stay in the plane. The neighbourhoods are computed, not
-/// numbered in the graph: a tall cycle's contours would fill it with vertices no search visits.
-pub(crate) fn walk_contour(g: &Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
-    let in_plane = |x: &Vertex| x.axis != 2 && x.p[2] == w;
-    let mut out = vec![start];
-    let mut prev = start;
-    let mut cur = start;
-    loop {
-        let a = crate::surface::around(g.vol, g.table, cur)?;
-        // Along segments in the plane (never a diagonal through a tube).
-        let next = (0..a.n)
-            .filter(|&k| !a.diagonal(k))
-            .map(|k| a.nbr(k))
-            .find(|x| in_plane(x) && *x != prev)?;
-        if next == start {
-            return Some(out);
-        }
-        if out.len() > 1 << 24 {
-            return None;
-        }
-        out.push(next);
-        prev = cur;
-        cur = next;
-    }
 }
 
 /// The sweep's state at the start of one slice, to step back to.

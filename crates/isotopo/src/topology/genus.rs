@@ -14,7 +14,7 @@ use super::values::{edge_point, SliceValues};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::unionfind::UnionFind;
-use crate::volume::{Affine, DType, Sample, Samples, SliceReader, VolumeInfo};
+use crate::volume::{Affine, BBox, DType, Sample, Samples, SliceReader, VolumeInfo};
 use rayon::prelude::*;
 
 /// What defines the isosurface: the isovalue, which side is inside, and the digital connectivity.
@@ -57,48 +57,6 @@ pub enum Encloses {
     Material,
     /// The boundary of a void inside the solid.
     Cavity,
-}
-
-/// Inclusive bounds in voxel indices.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct BBox {
-    pub min: [i64; 3],
-    pub max: [i64; 3],
-}
-
-impl BBox {
-    pub const EMPTY: BBox = BBox {
-        min: [i64::MAX; 3],
-        max: [i64::MIN; 3],
-    };
-    pub fn include(&mut self, p: [i64; 3]) {
-        for a in 0..3 {
-            self.min[a] = self.min[a].min(p[a]);
-            self.max[a] = self.max[a].max(p[a]);
-        }
-    }
-    pub fn union(&mut self, o: &BBox) {
-        self.include(o.min);
-        self.include(o.max);
-    }
-    /// Corners in millimetres (the box of the transformed voxel box).
-    pub fn to_mm(&self, affine: &Affine) -> [[f64; 3]; 2] {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for c in 0..8 {
-            let p = [
-                if c & 1 == 0 { self.min[0] } else { self.max[0] } as f64,
-                if c & 2 == 0 { self.min[1] } else { self.max[1] } as f64,
-                if c & 4 == 0 { self.min[2] } else { self.max[2] } as f64,
-            ];
-            let w = affine.apply(p);
-            for a in 0..3 {
-                lo[a] = lo[a].min(w[a]);
-                hi[a] = hi[a].max(w[a]);
-            }
-        }
-        [lo, hi]
-    }
 }
 
 /// One closed surface.

@@ -31,7 +31,7 @@ mod stream;
 mod tiff;
 
 pub use dtype::{DType, Endian, Sample, Samples, Threshold};
-pub use geometry::Affine;
+pub use geometry::{Affine, BBox};
 pub use memory::InMemoryVolume;
 pub use stream::{check_output_path, AtomicOutput};
 

@@ -128,7 +128,7 @@ pub struct MaskVolume {
     empty: PlaneMask,
     /// Where the surface crosses the grid edges, when the volume was read with them (for lengths
     /// in millimetres; see [`MaskVolume::from_reader_with_fractions`]).
-    pub fractions: Option<crate::geometry::EdgeFractions>,
+    pub fractions: Option<crate::grid::EdgeFractions>,
 }
 
 /// The scratch file behind an out-of-core [`MaskVolume`]: plane `w` at `w · plane_bytes`, its
@@ -281,7 +281,7 @@ impl MaskVolume {
         };
         let mut slice = Samples::new(info.dtype);
         let mut plane = PlaneMask::empty(nx, ny);
-        let mut fractions = with_fractions.then(|| crate::geometry::EdgeFractions::new(info.dims));
+        let mut fractions = with_fractions.then(|| crate::grid::EdgeFractions::new(info.dims));
         let mut below: Option<(Samples, PlaneMask)> = None;
         // Out of core along x or y: each input slice gives a line to every plane; gather a
         // chunk of them (within the default budget) and update each plane once per chunk.

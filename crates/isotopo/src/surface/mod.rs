@@ -18,7 +18,10 @@
 //! So its triangulation's diagonals, which join its two boundary loops, are edges of the graph
 //! too; a vertex on a tube has one or two more neighbours, inside the tube's sector.
 
-use crate::sweep::MaskVolume;
+pub mod geometry;
+pub mod search;
+
+use crate::grid::MaskVolume;
 use crate::topology::cases::{Case, EDGE_CORNERS};
 
 /// A crossing point: the grid edge from `p` to `p + e[axis]` (volume-local coordinates; -1 and
@@ -291,7 +294,7 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::{Frame, MaskVolume};
+    use crate::grid::{Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
     /// One inside sample: the surface around it is an octahedron-like sphere; every crossing has
@@ -362,7 +365,7 @@ mod tests {
 #[cfg(test)]
 mod tube_tests {
     use super::*;
-    use crate::sweep::{Frame, MaskVolume};
+    use crate::grid::{Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
     /// Six samples around two body-diagonal outside corners: under 6 the cube between them holds

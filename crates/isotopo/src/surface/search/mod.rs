@@ -22,8 +22,8 @@ mod weighted;
 
 pub use weighted::{odd_loop_mm, OddLoopMm};
 
+use crate::grid::MaskVolume;
 use crate::surface::{around, Around, PieceRef, Vertex, MAX_DEGREE};
-use crate::sweep::MaskVolume;
 use crate::topology::cases::Case;
 use std::collections::{HashMap, VecDeque};
 use std::hash::{BuildHasherDefault, Hasher};
@@ -1230,10 +1230,37 @@ pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bo
     false
 }
 
+/// The contour through `start` (a crossing on an edge lying in plane `w`), as its vertices in
+/// order: walk along the neighbours that stay in the plane. The neighbourhoods are computed, not
+/// numbered in the graph: a tall cycle's contours would fill it with vertices no search visits.
+pub(crate) fn walk_contour(g: &Graph, start: Vertex, w: i64) -> Option<Vec<Vertex>> {
+    let in_plane = |x: &Vertex| x.axis != 2 && x.p[2] == w;
+    let mut out = vec![start];
+    let mut prev = start;
+    let mut cur = start;
+    loop {
+        let a = crate::surface::around(g.vol, g.table, cur)?;
+        // Along segments in the plane (never a diagonal through a tube).
+        let next = (0..a.n)
+            .filter(|&k| !a.diagonal(k))
+            .map(|k| a.nbr(k))
+            .find(|x| in_plane(x) && *x != prev)?;
+        if next == start {
+            return Some(out);
+        }
+        if out.len() > 1 << 24 {
+            return None;
+        }
+        out.push(next);
+        prev = cur;
+        cur = next;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::{walk_contour, Frame, MaskVolume};
+    use crate::grid::{Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
     /// A solid torus about z: centre (c, c, c), radii R, r.

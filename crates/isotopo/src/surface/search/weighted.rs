@@ -19,7 +19,7 @@
 //! of an edge whose bound is below the best need a search of their own.
 
 use super::{simple_cycle, Curves, Graph, Region, EXACT_BUDGET, FIRST_BUDGET};
-use crate::geometry::Geometry;
+use crate::surface::geometry::Geometry;
 use crate::surface::Vertex;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
