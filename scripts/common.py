@@ -103,7 +103,7 @@ def load(path):
 
 def skimage_betti(solid, connectivity):
     """(b0, b1, b2, chi) of the solid (a boolean array) under connectivity 6 or 26, by
-    scikit-image (DESIGN.md section 2): euler_number gives chi, label gives b0 and, on the
+    scikit-image (docs/ARCHITECTURE.md, facts): euler_number gives chi, label gives b0 and, on the
     complement of the padded volume, b2 + 1."""
     from skimage.measure import euler_number, label
 

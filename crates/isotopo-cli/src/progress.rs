@@ -9,6 +9,8 @@ use std::time::Duration;
 pub struct Bars {
     bar: Mutex<Option<ProgressBar>>,
     enabled: bool,
+    /// `ISOTOPO_DEBUG` is set: the library's trace lines go to stderr.
+    tracing: bool,
 }
 
 impl Bars {
@@ -16,6 +18,7 @@ impl Bars {
         Bars {
             bar: Mutex::new(None),
             enabled: !quiet && std::io::stderr().is_terminal(),
+            tracing: std::env::var_os("ISOTOPO_DEBUG").is_some(),
         }
     }
 }
@@ -55,6 +58,12 @@ impl Progress for Bars {
     fn finish(&self) {
         if let Some(b) = self.bar.lock().unwrap().take() {
             b.finish_and_clear();
+        }
+    }
+
+    fn trace(&self, line: std::fmt::Arguments<'_>) {
+        if self.tracing {
+            eprintln!("{line}");
         }
     }
 }

@@ -11,6 +11,9 @@ pub trait Progress: Sync {
     fn message(&self, _msg: &str) {}
     /// The current stage is complete.
     fn finish(&self) {}
+    /// A line for whoever debugs a run (what was measured, how a pass ended); the command line
+    /// prints these when `ISOTOPO_DEBUG` is set. Ignored by default.
+    fn trace(&self, _line: std::fmt::Arguments<'_>) {}
 }
 
 /// Reports nothing.

@@ -310,6 +310,7 @@ pub fn simplify_json(
         "certified": outcome.certified,
         "rewinds": outcome.rewinds,
         "closures_refused": outcome.refused,
+        "closures_refused_by": outcome.refused_by,
         "seconds_stages": outcome.seconds,
         "removed": removed,
         "kept": outcome.kept,

@@ -226,8 +226,9 @@ pub struct Outcome {
     pub certified: Option<bool>,
     /// How often the sweep stepped back after closures.
     pub rewinds: usize,
-    /// Closures tried and refused by the local check.
+    /// Closures tried and refused by the local check, and why.
     pub refused: usize,
+    pub refused_by: std::collections::BTreeMap<&'static str, usize>,
     /// Seconds spent stepping the sweep, measuring loops and closing them.
     pub seconds: StageSeconds,
 }
@@ -376,8 +377,10 @@ fn memo_key(h: &LocatedHandle) -> u64 {
     s.finish()
 }
 
-/// Neighbourhoods kept between handles before starting afresh (memory).
-const GRAPH_CACHE_LIMIT: usize = 1 << 18;
+/// Neighbourhoods simplify keeps between handles before starting afresh: its searches stop at
+/// tau, so a smaller graph than analyze's (`MEASURE_GRAPH_LIMIT`) serves, and memory stays near
+/// the window's.
+const SIMPLIFY_GRAPH_LIMIT: usize = 1 << 18;
 
 impl Caches {
     /// Measures the handles one step of the sweep found.
@@ -390,7 +393,7 @@ impl Caches {
         limits: Limits,
         lasting: &mut Lasting,
     ) -> Vec<HandleLoops> {
-        if self.graph.len() > GRAPH_CACHE_LIMIT {
+        if self.graph.len() > SIMPLIFY_GRAPH_LIMIT {
             self.graph = GraphCache::default();
         }
         let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut self.graph));
@@ -406,18 +409,7 @@ impl Caches {
                     surface: 0,
                     located: h.clone(),
                 };
-                let t = std::time::Instant::now();
                 let l = loops::measure(&mut g, &mut self.slices, &h, conn, affine, limits);
-                if std::env::var_os("ISOTOPO_DEBUG").is_some() {
-                    eprintln!(
-                        "measured {:?} in {:.1} ms: reeb {:?} cross {:?}, cycle of {} nodes",
-                        h.located.kind,
-                        t.elapsed().as_secs_f64() * 1e3,
-                        l.reeb.as_ref().map(|x| x.length),
-                        l.cross.as_ref().map(|x| x.length),
-                        h.located.cycle.len()
-                    );
-                }
                 lasting.offer(key, &l, limits);
                 self.memo.insert(key, l.clone());
                 l
@@ -822,7 +814,7 @@ fn close_loop(
     lp: &Loop,
     partner: &[Vertex],
     ops: &[Operation],
-    (reach, graph, refused): (WallReach, &mut GraphCache, &mut usize),
+    (reach, graph, refused): (WallReach, &mut GraphCache, &mut Refused),
 ) -> Option<(closure::Applied, Wall)> {
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
     let centre = peel_centre(&points, partner);
@@ -894,8 +886,11 @@ fn close_loop(
             };
             let r = closure::close(vol, conn, attempt, graph);
             match r {
-                Some(applied) => return Some((applied, w)),
-                None => *refused += 1,
+                Ok(applied) => return Some((applied, w)),
+                Err(why) => {
+                    refused.total += 1;
+                    *refused.by.entry(why.name()).or_default() += 1;
+                }
             }
         }
     }
@@ -914,12 +909,19 @@ fn close_handle<'l>(
     candidates: &[(LoopKind, &'l Loop)],
     affine: &Affine,
     graph: &mut GraphCache,
-    refused: &mut usize,
+    refused: &mut Refused,
 ) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
     let mut by = |reach: WallReach| {
         close_handle_by(vol, opts, l, candidates, affine, (graph, refused), reach)
     };
     by(WallReach::Across).or_else(|| by(WallReach::Along))
+}
+
+/// Walls the local check refused: how many, and why (by [`closure::Refusal::name`]).
+#[derive(Default)]
+struct Refused {
+    total: usize,
+    by: std::collections::BTreeMap<&'static str, usize>,
 }
 
 /// Where the walls tried across a loop lie.
@@ -938,7 +940,7 @@ fn close_handle_by<'l>(
     l: &'l HandleLoops,
     candidates: &[(LoopKind, &'l Loop)],
     affine: &Affine,
-    (graph, refused): (&mut GraphCache, &mut usize),
+    (graph, refused): (&mut GraphCache, &mut Refused),
     reach: WallReach,
 ) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
     let conn = opts.surface.connectivity;
@@ -1027,7 +1029,7 @@ pub fn simplify(
     let mut removed: Vec<Removed> = Vec::new();
     // First flip of each sample: local coordinates -> its original side.
     let mut original: FastMap<[i64; 3], bool> = FastMap::default();
-    let (mut rewinds, mut refused) = (0, 0);
+    let (mut rewinds, mut refused) = (0, Refused::default());
     let mut intra_ribbon = 0;
     let mut kept: Vec<(i64, Kept)> = Vec::new();
     let mut pass = 0;
@@ -1087,6 +1089,15 @@ pub fn simplify(
             let t = std::time::Instant::now();
             let measured = caches.measure(vol, &new, conn, affine, limits, &mut lasting);
             seconds.loops += t.elapsed().as_secs_f64();
+            for (h, l) in new.iter().zip(&measured) {
+                progress.trace(format_args!(
+                    "measured {:?} at slice {s}: reeb {:?} cross {:?}, cycle of {} nodes",
+                    h.kind,
+                    l.reeb.as_ref().map(|x| x.length),
+                    l.cross.as_ref().map(|x| x.length),
+                    h.cycle.len()
+                ));
+            }
             let t = std::time::Instant::now();
             let mut order: Vec<usize> = (0..n).collect();
             let size = |i: usize| measured[i].size_in(opts.metric).unwrap_or(f64::INFINITY);
@@ -1226,24 +1237,21 @@ pub fn simplify(
                         basis.iter().flat_map(|(_, c)| c.clone()).collect();
                     let mut g = Graph::new(vol, cases(conn));
                     let rank = loops::basis::crossing_rank(&mut g, &curves);
-                    if std::env::var_os("ISOTOPO_DEBUG").is_some() {
-                        eprintln!(
-                            "certificate: {} curves, rank {rank:?}, {} kept",
-                            curves.len(),
-                            kept.len()
-                        );
-                    }
+                    progress.trace(format_args!(
+                        "certificate: {} curves, rank {rank:?}, {} kept",
+                        curves.len(),
+                        kept.len()
+                    ));
                     rank == Some(2 * kept.len())
                 }
             });
         }
         vol.follow_sweep(sweeper.next)?;
-        if std::env::var_os("ISOTOPO_DEBUG").is_some() {
-            eprintln!(
-                "pass {pass} done: {} closed, {rewinds} rewinds so far, {seconds:?}",
-                removed.len() - closed_before
-            );
-        }
+        progress.trace(format_args!(
+            "pass {pass} done: {} closed, {rewinds} rewinds so far, refused {:?}, {seconds:?}",
+            removed.len() - closed_before,
+            refused.by
+        ));
         if removed.len() == closed_before {
             break;
         }
@@ -1286,7 +1294,8 @@ pub fn simplify(
         passes: pass,
         certified,
         rewinds,
-        refused,
+        refused: refused.total,
+        refused_by: refused.by,
         seconds,
     })
 }

@@ -3,7 +3,7 @@
 //! The wall is the set of samples within distance `d` of the triangle fan about the loop's
 //! centroid. Filling (collapse: the loop goes round empty space) sets them inside; cutting
 //! (pinch: the loop goes round material) sets them outside. The wall must stop paths of the
-//! *other* side (DESIGN.md §3): any step between two samples on opposite sides of the fan passes
+//! *other* side (docs/ARCHITECTURE.md, closing a loop): any step between two samples on opposite sides of the fan passes
 //! within half its length of the fan, so `d = 1/2` stops 6-adjacent paths and `d = √3/2` stops
 //! 26-adjacent ones.
 //!
@@ -397,7 +397,7 @@ pub fn close(
     conn: Connectivity,
     attempt: Attempt,
     cache: &mut GraphCache,
-) -> Option<Applied> {
+) -> Result<Applied, Refusal> {
     let Attempt {
         lp,
         partner,
@@ -413,7 +413,7 @@ pub fn close(
         .filter(|q| vol.get(q[0], q[1], q[2]) != target)
         .collect();
     if changed.is_empty() {
-        return None;
+        return Err(Refusal::NothingToChange);
     }
     let cubes = touched_cubes(&changed);
     let table = cases(conn);
@@ -443,20 +443,17 @@ pub fn close(
     // A wall that changes none of the surface's pieces (a sample set apart from it) would make a
     // new surface of its own, however the counts come out.
     if old_pieces.is_empty() {
-        debug_refusal("the wall does not touch the surface", lp, op, &changed);
-        return None;
+        return Err(Refusal::OffTheSurface);
     }
     let handles = (new_chi4 - old_chi4) / 8;
     if handles < 1 || (new_chi4 - old_chi4) % 8 != 0 {
-        debug_refusal(&format!("chi4 {:+}", new_chi4 - old_chi4), lp, op, &changed);
-        return None;
+        return Err(Refusal::EulerCharacteristic);
     }
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
     let same_surface = certified || joined(&mut g, lp, &old_pieces, &near, &along);
     *cache = g.into_cache();
     if !same_surface {
-        debug_refusal("the wall touches another surface", lp, op, &changed);
-        return None;
+        return Err(Refusal::OtherSurface);
     }
     flip(vol, cache, &changed, target, conn);
     let mut g = Graph::with_cache(vol, table, std::mem::take(cache));
@@ -464,33 +461,52 @@ pub fn close(
         || !new_pieces.is_empty() && joined(&mut g, &new_pieces[..1], &new_pieces, &near, &along);
     *cache = g.into_cache();
     if !ok {
-        debug_refusal("the surface would fall apart", lp, op, &changed);
         flip(vol, cache, &changed, !target, conn);
-        return None;
+        return Err(Refusal::FallsApart);
     }
-    Some(Applied {
+    Ok(Applied {
         op,
         changed,
         handles: handles as usize,
     })
 }
 
-/// With `ISOTOPO_DEBUG` set, says why a closure was refused.
-fn debug_refusal(why: &str, lp: &[Vertex], op: Operation, changed: &[[i64; 3]]) {
-    if std::env::var_os("ISOTOPO_DEBUG").is_some() {
-        eprintln!(
-            "closure refused ({why}): loop of {} edges, {op:?}, {} samples",
-            lp.len(),
-            changed.len()
-        );
-        if std::env::var_os("ISOTOPO_DEBUG_LOOPS").is_some() {
-            eprintln!(
-                "  loop {:?} changed {:?}",
-                lp.iter().map(|v| (v.p, v.axis)).collect::<Vec<_>>(),
-                changed
-            );
+/// Why [`close`] did not keep a wall (the volume is as it was).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Refusal {
+    /// Every sample of the wall is already on the wall's side.
+    NothingToChange,
+    /// The wall changes no piece of the surface (it would make a surface of its own).
+    OffTheSurface,
+    /// The surface's Euler characteristic would not rise by a positive multiple of 2.
+    EulerCharacteristic,
+    /// The wall changes a piece of another surface.
+    OtherSurface,
+    /// The surface round the wall would fall apart.
+    FallsApart,
+}
+
+impl Refusal {
+    /// As the reports spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Refusal::NothingToChange => "nothing_to_change",
+            Refusal::OffTheSurface => "off_the_surface",
+            Refusal::EulerCharacteristic => "euler_characteristic",
+            Refusal::OtherSurface => "other_surface",
+            Refusal::FallsApart => "falls_apart",
         }
     }
+
+    /// Every refusal, in the order of the checks.
+    pub const ALL: [Refusal; 5] = [
+        Refusal::NothingToChange,
+        Refusal::OffTheSurface,
+        Refusal::EulerCharacteristic,
+        Refusal::OtherSurface,
+        Refusal::FallsApart,
+    ];
 }
 
 #[cfg(test)]

@@ -914,8 +914,10 @@ pub fn linking_number(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     total / (4.0 * std::f64::consts::PI)
 }
 
-/// Vertices a worker's surface graph keeps between handles before starting afresh.
-const GRAPH_CACHE_LIMIT: usize = 1 << 21;
+/// Vertices a worker's surface graph keeps between handles before starting afresh, when
+/// `analyze` measures every handle (one graph per worker thread, each handle's loops searched
+/// in full; simplify keeps fewer: see its `SIMPLIFY_GRAPH_LIMIT`).
+const MEASURE_GRAPH_LIMIT: usize = 1 << 21;
 
 /// Handles measured between two moves of an out-of-core volume's window.
 const MEASURE_BATCH: usize = 64;
@@ -955,7 +957,7 @@ pub fn measure_all(
                 || (Graph::new(frozen, table), SliceCache::new(conn)),
                 |(g, cache), &i| {
                     // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
-                    if g.len() > GRAPH_CACHE_LIMIT {
+                    if g.len() > MEASURE_GRAPH_LIMIT {
                         g.clear();
                     }
                     let l = measure(g, cache, &handles[i], conn, affine, limits);

@@ -1,4 +1,5 @@
-//! The 256 cube cases, derived in code from the digital-topology rule (DESIGN.md §1).
+//! The 256 cube cases, derived in code from the digital-topology rule (docs/ARCHITECTURE.md,
+//! conventions).
 //!
 //! A cube has 8 corner samples, each inside or outside. The rule: under connectivity 6 the
 //! surface in a cube has one piece per group of *inside* corners joined along cube edges; under
@@ -28,7 +29,7 @@
 
 use std::sync::OnceLock;
 
-/// Digital connectivity of the solid (DESIGN.md §1).
+/// Digital connectivity of the solid (see docs/ARCHITECTURE.md, conventions).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub enum Connectivity {
     /// Inside samples 6-adjacent, outside 26-adjacent (the default).

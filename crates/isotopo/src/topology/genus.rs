@@ -5,7 +5,7 @@
 //! segments on the plane between them are joined in a union-find over ribbons. A surface's Euler
 //! characteristic is the sum of its pieces' shares (`Piece::chi4`), so its genus follows from
 //! `genus = (2 - chi) / 2`. Surfaces enclosing material count in `b0`, cavities in `b2`, and the
-//! total genus is `b1` (DESIGN.md §2).
+//! total genus is `b1` (docs/ARCHITECTURE.md, facts).
 
 use super::cases::{cases, Connectivity};
 use super::mask::{Classifier, Inside, PlaneMask};

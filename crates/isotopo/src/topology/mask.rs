@@ -13,7 +13,7 @@
 use crate::volume::{Sample, Samples, Scaling, Threshold};
 use crate::with_samples;
 
-/// Which side of the isovalue is inside (DESIGN.md §1). Ties and NaN are always outside.
+/// Which side of the isovalue is inside (docs/ARCHITECTURE.md, conventions). Ties and NaN are always outside.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Inside {
     /// `v > iso` (CT, probability maps; the default).
