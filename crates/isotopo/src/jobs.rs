@@ -174,7 +174,8 @@ pub struct Handles {
     /// The handles (each with its Reeb cycle or mini-volume) and the genus they add up to.
     pub report: HandleReport,
     pub seconds: f64,
-    masks: MaskVolume,
+    /// The inside bits the handles were found in (the surface graph's volume, for searches).
+    pub masks: MaskVolume,
 }
 
 /// Locates every handle of the isosurface: a sweep builds the Reeb graph of the contours; each
@@ -243,6 +244,8 @@ pub struct Analysis {
     /// Seconds for the sweep, and in all.
     pub seconds_sweep: f64,
     pub seconds: f64,
+    /// The inside bits the handles were found in (the surface graph's volume, for searches).
+    pub masks: MaskVolume,
 }
 
 /// Locates every handle and measures its two loops (the paper's Reeb loop and cross loop),
@@ -291,6 +294,7 @@ pub fn analyze(source: Source, opts: &AnalyzeOptions, progress: &dyn Progress) -
         loops_mm,
         seconds_sweep,
         seconds: t.elapsed().as_secs_f64(),
+        masks,
     })
 }
 

@@ -118,8 +118,9 @@ impl SimplifyOptions {
         Limits {
             below: self.tau * self.max_ratio.unwrap_or(1.0).max(1.0),
             metric: self.metric,
-            // The ratio of the loops needs both measured.
-            size_only: self.max_ratio.is_none(),
+            // The ratio of the loops needs both measured; so does a mode that may close only
+            // one kind (the longer loop may be the kind it can close).
+            size_only: self.max_ratio.is_none() && self.mode == Mode::Both,
         }
     }
 }

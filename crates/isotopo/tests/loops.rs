@@ -21,19 +21,13 @@ fn analyze(
     conn: Connectivity,
     axis: Axis,
 ) -> (MaskVolume, HandleReport, Vec<HandleLoops>) {
-    let mut v = vol.clone();
-    let mut masks =
-        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, None, &NoProgress).unwrap();
-    let r = find_handles(&mut masks, axis, conn, &NoProgress).unwrap();
-    let loops = {
-        let mut g = Graph::new(&masks, cases(conn));
-        let mut cache = SliceCache::new(conn);
-        r.handles
-            .iter()
-            .map(|h| measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, Limits::NONE))
-            .collect()
+    let opts = isotopo::AnalyzeOptions {
+        surface: common::opts(iso, conn),
+        axis,
+        ..isotopo::AnalyzeOptions::default()
     };
-    (masks, r, loops)
+    let a = isotopo::analyze(vol.clone().into(), &opts, &NoProgress).unwrap();
+    (a.masks, a.report, a.loops)
 }
 
 /// Closed path on the surface (consecutive vertices adjacent) and non-separating.

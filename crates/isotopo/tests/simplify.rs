@@ -16,12 +16,8 @@ use common::oracle::betti;
 use common::systole::systole;
 use common::{shapes, Rng, BOTH};
 use isotopo::grid::{Axis, MaskVolume};
-use isotopo::loops::{measure, Limits, SliceCache};
 use isotopo::progress::NoProgress;
 use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
-use isotopo::surface::search::Graph;
-use isotopo::sweep::find_handles;
-use isotopo::topology::cases::cases;
 use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::{Affine, InMemoryVolume};
 
@@ -47,21 +43,22 @@ fn masks(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> Mask
     MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, None, &NoProgress).unwrap()
 }
 
-/// The loops of every handle an analysis with the given limits finds.
+/// The loops of every handle of the volume, each measured exactly up to `tau` (edges).
 fn handle_loops(
     vol: &InMemoryVolume,
     conn: Connectivity,
     axis: Axis,
-    limits: Limits,
+    tau: Option<f64>,
 ) -> Vec<isotopo::loops::HandleLoops> {
-    let mut m = masks(vol, 0.0, conn, axis);
-    let r = find_handles(&mut m, axis, conn, &NoProgress).unwrap();
-    let mut g = Graph::new(&m, cases(conn));
-    let mut cache = SliceCache::new(conn);
-    r.handles
-        .iter()
-        .map(|h| measure(&mut g, &mut cache, h, conn, &Affine::IDENTITY, limits))
-        .collect()
+    let opts = isotopo::AnalyzeOptions {
+        surface: common::opts(0.0, conn),
+        axis,
+        tau,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    isotopo::analyze(vol.clone().into(), &opts, &NoProgress)
+        .unwrap()
+        .loops
 }
 
 fn options(tau: f64, mode: Mode, conn: Connectivity) -> SimplifyOptions {
@@ -168,12 +165,9 @@ fn check(
             ));
         }
     }
-    let limits = if opts.mode == Mode::Both {
-        Limits::NONE
-    } else {
-        opts.limits()
-    };
-    let analysed = handle_loops(&result, conn, axis, limits);
+    // Both ways, every loop exactly; one way, up to tau as simplify measures them.
+    let exact_up_to = (opts.mode != Mode::Both && opts.tau.is_finite()).then_some(opts.tau);
+    let analysed = handle_loops(&result, conn, axis, exact_up_to);
     // With fill or cut only, a handle the mode allows closing may stay when every such wall is
     // refused (filling the hole of one of two linked tori would join them).
     let failed = out

@@ -14,11 +14,14 @@ use isotopo::volume::InMemoryVolume;
 const AXES: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
 
 fn sweep(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> HandleReport {
-    let mut v = vol.clone();
-    let mut masks =
-        MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, None, &NoProgress).unwrap();
-    find_handles(&mut masks, axis, conn, &NoProgress)
+    let opts = isotopo::AnalyzeOptions {
+        surface: common::opts(iso, conn),
+        axis,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    isotopo::handles(vol.clone().into(), &opts, &NoProgress)
         .unwrap_or_else(|e| panic!("sweep along {}: {e}", axis.name()))
+        .report
 }
 
 /// Checks handles == genus per surface and in total (against the genus pass). Returns an error
