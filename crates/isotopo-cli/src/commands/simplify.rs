@@ -1,0 +1,251 @@
+//! `isotopo simplify`.
+
+use crate::args::*;
+use crate::print::*;
+use crate::progress;
+use clap::Args;
+use isotopo::volume::{self};
+use isotopo::{Error, Result};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub(crate) struct SimplifyArgs {
+    #[command(flatten)]
+    input: Input,
+    #[command(flatten)]
+    surface: SurfaceArgs,
+    #[command(flatten)]
+    window: WindowArgs,
+    /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
+    /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
+    #[arg(long, required_unless_present = "tau_mm", conflicts_with = "tau_mm")]
+    tau: Option<f64>,
+    /// Like --tau, in millimetres along the interpolated surface (the file's spacing): for
+    /// anisotropic scans, where an edge along one axis is longer than along another.
+    #[arg(long, value_name = "MM")]
+    tau_mm: Option<f64>,
+    /// Output volume (same format, type, header and geometry as the input unless the extension
+    /// says otherwise).
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Also write the simplified isosurface as a mesh (.ply, .obj or .stl).
+    #[arg(long, value_name = "OUT")]
+    mesh: Option<PathBuf>,
+    /// Only add material: close loops around empty space (handle collapse).
+    #[arg(long, conflicts_with = "cut_only")]
+    fill_only: bool,
+    /// Only remove material: close loops around material (handle pinch).
+    #[arg(long)]
+    cut_only: bool,
+    /// Keep long skinny handles: those whose longer loop is more than R times the shorter.
+    #[arg(long, value_name = "R")]
+    max_ratio: Option<f64>,
+    /// Sweep direction.
+    #[arg(long, value_enum, default_value = "z")]
+    axis: AxisArg,
+    /// Write a JSON report (genus before/after, every removed and kept handle).
+    #[arg(long, value_name = "OUT.json")]
+    report: Option<PathBuf>,
+    /// Print the JSON report to stdout instead of the summary.
+    #[arg(long)]
+    json: bool,
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
+    use isotopo::simplify::{Mode, SimplifyOptions};
+    let surface = a.surface.options()?;
+    let (tau, metric, flag) = match (a.tau, a.tau_mm) {
+        (Some(t), _) => (t, isotopo::loops::Metric::Edges, "--tau"),
+        (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
+        (None, None) => return Err(Error::usage("give --tau or --tau-mm")),
+    };
+    if tau.is_nan() || tau <= 0.0 {
+        return Err(Error::usage(format!("{flag} must be positive (or inf)")));
+    }
+    if let Some(r) = a.max_ratio {
+        if r.is_nan() || r < 1.0 {
+            return Err(Error::usage("--max-ratio must be at least 1"));
+        }
+    }
+    let sopts = SimplifyOptions {
+        surface,
+        axis: a.axis.axis(),
+        tau,
+        metric,
+        mode: if a.fill_only {
+            Mode::FillOnly
+        } else if a.cut_only {
+            Mode::CutOnly
+        } else {
+            Mode::Both
+        },
+        max_ratio: a.max_ratio,
+        max_slices: a.window.max_slices,
+    };
+    // Every output is checked before the work starts.
+    let reader = a.input.open()?;
+    let info = reader.info().clone();
+    let mut outputs = vec![&a.output];
+    outputs.extend(a.mesh.iter());
+    outputs.extend(a.report.iter());
+    for (i, p) in outputs.iter().enumerate() {
+        volume::check_output_path(p, &info)?;
+        if outputs[..i].contains(p) {
+            return Err(Error::usage(format!(
+                "{}: given as two different outputs",
+                p.display()
+            )));
+        }
+    }
+    if volume::Format::from_path(&a.output).is_none() {
+        return Err(Error::usage(format!(
+            "{}: cannot tell the output format from the extension; use the input's ({})",
+            a.output.display(),
+            info.format.name()
+        )));
+    }
+    let bars = progress::Bars::new(a.quiet || a.json);
+    let t0 = Instant::now();
+    let mut done = isotopo::simplify(isotopo::Source::Reader(reader), &sopts, &bars)?;
+    let t = Instant::now();
+    done.write(&a.output, &bars)?;
+    let t_write = t.elapsed().as_secs_f64();
+    let mut mesh_genus = None;
+    if let Some(p) = &a.mesh {
+        let mut out = volume::open(&a.output, &a.input.options())?;
+        let mesh = isotopo::mesh::extract(out.as_mut(), &surface, false, &bars)?;
+        mesh.write(p)?;
+        mesh_genus = Some(mesh.closed_euler_characteristic());
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let mut v = done.report(&sopts);
+    let extra = serde_json::json!({
+        "output": a.output,
+        "mesh": a.mesh,
+        "mesh_euler_characteristic": mesh_genus,
+        "seconds": secs,
+        "seconds_write": t_write,
+    });
+    if let (Some(obj), serde_json::Value::Object(e)) = (v.as_object_mut(), extra) {
+        obj.extend(e);
+    }
+    if let Some(p) = &a.report {
+        isotopo::report::write_json(p, &v)?;
+    }
+    if a.json {
+        println!("{}", to_json(&v)?);
+        return Ok(());
+    }
+    if a.quiet {
+        return Ok(());
+    }
+    let (before, after, outcome, values) =
+        (&done.before, &done.after, &done.outcome, &done.wall_values);
+    let (t_read, t_simplify) = (done.seconds_read, done.seconds_simplify);
+    let opts = &surface;
+    let axis = sopts.axis;
+    let collapse = v["collapse"].as_u64().unwrap_or(0);
+    let pinch = v["pinch"].as_u64().unwrap_or(0);
+    println!(
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}, tau {}{}{}",
+        info.path.display(),
+        num(opts.iso),
+        opts.inside.name(),
+        opts.connectivity.number(),
+        axis.name(),
+        if tau.is_finite() {
+            num(tau)
+        } else {
+            "inf".into()
+        },
+        match sopts.mode {
+            Mode::Both => "",
+            Mode::FillOnly => ", fill only",
+            Mode::CutOnly => ", cut only",
+        },
+        a.max_ratio
+            .map(|r| format!(", max ratio {}", num(r)))
+            .unwrap_or_default()
+    );
+    println!(
+        "grid        {}×{}×{} {}",
+        info.dims[0],
+        info.dims[1],
+        info.dims[2],
+        info.dtype.name()
+    );
+    println!(
+        "genus       {} -> {}   (components {} -> {}, cavities {} -> {})",
+        before.b1, after.b1, before.b0, after.b0, before.b2, after.b2
+    );
+    println!(
+        "removed     {} handles: {} collapse (fill), {} pinch (cut); intra-ribbon handles: {}",
+        collapse + pinch,
+        collapse,
+        pinch,
+        outcome.intra_ribbon
+    );
+    if !outcome.kept.is_empty() {
+        use isotopo::simplify::KeepReason;
+        let reasons = [
+            (KeepReason::Size, "at or above tau"),
+            (KeepReason::Ratio, "long and skinny (--max-ratio)"),
+            (KeepReason::Mode, "excluded by --fill-only/--cut-only"),
+            (KeepReason::ClosureFailed, "no clean wall found"),
+            (KeepReason::Unmeasured, "Reeb loop beyond the search budget"),
+            (KeepReason::PassLimit, "pass limit reached"),
+        ];
+        let parts: Vec<String> = reasons
+            .iter()
+            .filter_map(|(r, name)| {
+                let n = outcome.kept.iter().filter(|k| k.reason == *r).count();
+                (n > 0).then(|| format!("{n} {name}"))
+            })
+            .collect();
+        println!(
+            "kept        {} handles: {}",
+            outcome.kept.len(),
+            parts.join(", ")
+        );
+    }
+    match outcome.certified {
+        Some(true) => println!(
+            "checked     no loop shorter than tau {} is left (every loop of the result crosses a checked curve)",
+            num(tau)
+        ),
+        Some(false) => println!(
+            "checked     NOT proven that no loop shorter than tau {} is left (see the kept handles)",
+            num(tau)
+        ),
+        None => {}
+    }
+    println!(
+        "samples     {} changed ({} filled, {} cut), all within {:.1} voxels ({:.1} mm) of a closed loop; wall values: inside {}, outside {}",
+        group(outcome.edits.len() as u64),
+        group(v["samples_filled"].as_u64().unwrap_or(0)),
+        group(v["samples_cut"].as_u64().unwrap_or(0)),
+        v["max_distance"].as_f64().unwrap_or(0.0),
+        v["max_distance_mm"].as_f64().unwrap_or(0.0),
+        values.inside.map(num).unwrap_or_else(|| "-".into()),
+        values.outside.map(num).unwrap_or_else(|| "-".into())
+    );
+    println!(
+        "sweep       {} passes, {} rewinds, {} closures refused by the local check",
+        outcome.passes, outcome.rewinds, outcome.refused
+    );
+    println!("output      {}", a.output.display());
+    if let (Some(p), Some(chi)) = (&a.mesh, mesh_genus) {
+        println!("mesh        {} (Euler characteristic {})", p.display(), chi);
+    }
+    if let Some(p) = &a.report {
+        println!("report      {}", p.display());
+    }
+    println!(
+        "time        {:.2} s ({:.2} s read, {:.2} s simplify, {:.2} s write)",
+        secs, t_read, t_simplify, t_write
+    );
+    Ok(())
+}

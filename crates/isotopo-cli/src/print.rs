@@ -1,0 +1,36 @@
+//! Numbers and JSON as the commands print them.
+
+use isotopo::{Error, Result};
+
+pub(crate) fn group(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// Compact number: up to 6 significant digits, no trailing zeros.
+pub(crate) fn num(x: f64) -> String {
+    if x.is_nan() {
+        return "nan".into();
+    }
+    if x == x.trunc() && x.abs() < 1e15 {
+        return format!("{}", x as i64);
+    }
+    let s = format!("{:.6}", x);
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s.len() > 12 {
+        format!("{x:.4e}")
+    } else {
+        s.to_string()
+    }
+}
+
+pub(crate) fn to_json(v: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string_pretty(v).map_err(|e| Error::Internal(e.to_string()))
+}
