@@ -27,7 +27,12 @@ use crate::volume::{self, InMemoryVolume, ReadOptions, SliceReader, VolumeInfo};
 /// Where a job reads its volume from.
 pub enum Source {
     /// A file in any format isotopo reads, with the options raw files need.
-    File { path: PathBuf, read: ReadOptions },
+    File {
+        /// The file.
+        path: PathBuf,
+        /// How to read it if it does not describe itself (headerless raw).
+        read: ReadOptions,
+    },
     /// Samples already in memory.
     Memory(InMemoryVolume),
     /// A volume already opened (the command line opens it first to check the outputs).
@@ -65,6 +70,7 @@ pub struct Topology {
     pub info: VolumeInfo,
     /// b0, b1 (the total genus), b2, the Euler characteristic and the surfaces.
     pub solid: GenusReport,
+    /// Seconds the pass took, reading included.
     pub seconds: f64,
 }
 
@@ -170,9 +176,11 @@ impl AnalyzeOptions {
 
 /// Every handle of the isosurface, located by the sweep (see [`handles`]).
 pub struct Handles {
+    /// The input's header.
     pub info: VolumeInfo,
     /// The handles (each with its Reeb cycle or mini-volume) and the genus they add up to.
     pub report: HandleReport,
+    /// Seconds the sweep took, reading included.
     pub seconds: f64,
     /// The inside bits the handles were found in (the surface graph's volume, for searches).
     pub masks: MaskVolume,
@@ -234,15 +242,18 @@ fn header(info: &VolumeInfo, opts: &AnalyzeOptions) -> serde_json::Value {
 
 /// Every handle with its two loops (see [`analyze`]).
 pub struct Analysis {
+    /// The input's header.
     pub info: VolumeInfo,
+    /// The handles located (see [`Handles::report`]).
     pub report: HandleReport,
     /// Each handle's Reeb loop and cross loop, in the handles' order, shortest in voxel edges
     /// (or in millimetres when only those were asked for).
     pub loops: Vec<HandleLoops>,
     /// Shortest in millimetres, when asked for.
     pub loops_mm: Option<Vec<HandleLoops>>,
-    /// Seconds for the sweep, and in all.
+    /// Seconds for the sweep (reading included).
     pub seconds_sweep: f64,
+    /// Seconds in all.
     pub seconds: f64,
     /// The inside bits the handles were found in (the surface graph's volume, for searches).
     pub masks: MaskVolume,
@@ -330,17 +341,19 @@ impl Analysis {
 pub struct Simplified {
     /// The input's header (grid, sample type, affine, file).
     pub info: VolumeInfo,
-    /// Topology of the solid before and after (b0 and b2 are the same, by construction and by
-    /// a check of the whole volume).
+    /// Topology of the solid before (b0 and b2 stay the same, by construction and by a check
+    /// of the whole volume).
     pub before: GenusReport,
+    /// Topology of the solid after: `b1` is the number of handles kept.
     pub after: GenusReport,
     /// The handles removed and kept, and every sample changed.
     pub outcome: Outcome,
     /// The values written into the changed samples (just inside / just outside the isovalue,
     /// in the input's sample type).
     pub wall_values: WallValues,
-    /// Seconds spent reading (classifying the samples) and simplifying.
+    /// Seconds spent reading (classifying the samples).
     pub seconds_read: f64,
+    /// Seconds spent simplifying (every pass, the certificate included).
     pub seconds_simplify: f64,
     input: Box<dyn SliceReader>,
 }
