@@ -1017,6 +1017,114 @@ fn close_handle_by<'l>(
     None
 }
 
+/// A closure done: which of the handle's loops, the loop, the wall's samples and how it was made.
+struct Closure<'c> {
+    which: LoopKind,
+    lp: &'c Loop,
+    applied: &'c closure::Applied,
+    wall: Wall,
+}
+
+/// The report of a handle removed by `closure` at `(pass, slice)`, in original coordinates.
+fn removal(
+    vol: &MaskVolume,
+    h: &LocatedHandle,
+    l: &HandleLoops,
+    closure: Closure,
+    affine: &Affine,
+    (pass, slice): (usize, i64),
+) -> Removed {
+    let Closure {
+        which,
+        lp,
+        applied,
+        wall,
+    } = closure;
+    let changed: Vec<[i64; 3]> = applied
+        .changed
+        .iter()
+        .map(|q| vol.frame.to_original_i(*q))
+        .collect();
+    let (dist, dist_mm) = max_distance(&changed, &lp.points, affine);
+    Removed {
+        size: l.size().unwrap_or(lp.length),
+        size_mm: l.size_in(Metric::Millimetres).unwrap_or(lp.length_mm),
+        reeb: l.reeb.as_ref().map(|x| x.length),
+        cross: l.cross.as_ref().map(|x| x.length),
+        kind: h.kind,
+        closed: which,
+        operation: applied.op,
+        length: lp.length,
+        length_mm: lp.length_mm,
+        thickness: wall.thickness(),
+        wall: wall.name(),
+        samples_changed: changed.len(),
+        samples: changed,
+        handles: applied.handles,
+        max_distance: dist,
+        max_distance_mm: dist_mm,
+        points: lp.points.clone(),
+        bbox: l.bbox().unwrap_or(h.bbox),
+        pass,
+        slice,
+    }
+}
+
+/// The certificate of the last pass: every handle kept for its size, and the crossing matrix of
+/// their curves of full rank (2 × kept), so no loop below tau is left.
+fn certificate_holds(
+    vol: &MaskVolume,
+    conn: Connectivity,
+    kept: &[(i64, Kept)],
+    basis: &[(i64, Vec<Vec<Vertex>>)],
+    progress: &dyn Progress,
+) -> bool {
+    if kept.iter().any(|(_, k)| k.reason != KeepReason::Size) {
+        return false;
+    }
+    let curves: Vec<Vec<Vertex>> = basis.iter().flat_map(|(_, c)| c.clone()).collect();
+    let mut g = Graph::new(vol, cases(conn));
+    let rank = loops::basis::crossing_rank(&mut g, &curves);
+    progress.trace(format_args!(
+        "certificate: {} curves, rank {rank:?}, {} kept",
+        curves.len(),
+        kept.len()
+    ));
+    rank == Some(2 * kept.len())
+}
+
+/// The samples that end on the other side (`original`: each flipped sample's first side),
+/// in original coordinates, plane by plane (out of core, each plane read once).
+fn final_edits(vol: &mut MaskVolume, original: FastMap<[i64; 3], bool>) -> Vec<Edit> {
+    let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
+    flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
+    let mut edits: Vec<Edit> = Vec::new();
+    for same_plane in flipped.chunk_by(|a, b| a.0[2] == b.0[2]) {
+        let plane = vol.plane_once(same_plane[0].0[2]);
+        for &(q, was) in same_plane {
+            if plane.get(q[0] as isize, q[1] as isize) != was {
+                edits.push((vol.frame.to_original_i(q), !was));
+            }
+        }
+    }
+    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
+    edits
+}
+
+/// After the last allowed pass closed something, its measurements may be stale: a handle kept
+/// for its size that measured below tau says so.
+fn mark_stale(kept: &mut [(i64, Kept)], opts: &SimplifyOptions) {
+    for (_, k) in kept {
+        let size = match opts.metric {
+            Metric::Edges => k.size.map(|s| s as f64),
+            Metric::Millimetres => k.size_mm,
+        };
+        if size.is_some_and(|s| s < opts.tau) && k.reason == KeepReason::Size {
+            k.reason = KeepReason::PassLimit;
+        }
+    }
+}
+
 /// Removes every handle of `vol` smaller than `opts.tau` (see the module documentation). `vol`
 /// is edited in place; the outcome lists the edits in original coordinates.
 pub fn simplify(
@@ -1186,34 +1294,13 @@ pub fn simplify(
                 lowest = lowest.min(wall.min[2]);
                 caches.slices.invalidate(wall.min[2], wall.max[2]);
                 walls.push(wall);
-                let changed: Vec<[i64; 3]> = applied
-                    .changed
-                    .iter()
-                    .map(|q| vol.frame.to_original_i(*q))
-                    .collect();
-                let (dist, dist_mm) = max_distance(&changed, &lp.points, affine);
-                removed.push(Removed {
-                    size: l.size().unwrap_or(lp.length),
-                    size_mm: l.size_in(Metric::Millimetres).unwrap_or(lp.length_mm),
-                    reeb: l.reeb.as_ref().map(|x| x.length),
-                    cross: l.cross.as_ref().map(|x| x.length),
-                    kind: h.kind,
-                    closed: which,
-                    operation: applied.op,
-                    length: lp.length,
-                    length_mm: lp.length_mm,
-                    thickness: wall_kind.thickness(),
-                    wall: wall_kind.name(),
-                    samples_changed: changed.len(),
-                    samples: changed.clone(),
-                    handles: applied.handles,
-                    max_distance: dist,
-                    max_distance_mm: dist_mm,
-                    points: lp.points.clone(),
-                    bbox: l.bbox().unwrap_or(h.bbox),
-                    pass,
-                    slice: s,
-                });
+                let closure = Closure {
+                    which,
+                    lp: &lp,
+                    applied: &applied,
+                    wall: wall_kind,
+                };
+                removed.push(removal(vol, h, l, closure, affine, (pass, s)));
             }
             seconds.closures += t.elapsed().as_secs_f64();
             if !walls.is_empty() {
@@ -1232,20 +1319,7 @@ pub fn simplify(
         progress.finish();
         if removed.len() == closed_before {
             // The last pass: what it kept is the result; check its certificate.
-            certified = certifying.then(|| {
-                kept.iter().all(|(_, k)| k.reason == KeepReason::Size) && {
-                    let curves: Vec<Vec<Vertex>> =
-                        basis.iter().flat_map(|(_, c)| c.clone()).collect();
-                    let mut g = Graph::new(vol, cases(conn));
-                    let rank = loops::basis::crossing_rank(&mut g, &curves);
-                    progress.trace(format_args!(
-                        "certificate: {} curves, rank {rank:?}, {} kept",
-                        curves.len(),
-                        kept.len()
-                    ));
-                    rank == Some(2 * kept.len())
-                }
-            });
+            certified = certifying.then(|| certificate_holds(vol, conn, &kept, &basis, progress));
         }
         vol.follow_sweep(sweeper.next)?;
         progress.trace(format_args!(
@@ -1257,16 +1331,7 @@ pub fn simplify(
             break;
         }
         if pass == MAX_PASSES {
-            // The last pass closed something, so its measurements may be stale: say so.
-            for (_, k) in &mut kept {
-                let size = match opts.metric {
-                    Metric::Edges => k.size.map(|s| s as f64),
-                    Metric::Millimetres => k.size_mm,
-                };
-                if size.is_some_and(|s| s < opts.tau) && k.reason == KeepReason::Size {
-                    k.reason = KeepReason::PassLimit;
-                }
-            }
+            mark_stale(&mut kept, opts);
             break;
         }
     }
@@ -1274,19 +1339,7 @@ pub fn simplify(
         // The pass limit was reached: the last pass closed something.
         certified = Some(false);
     }
-    // Samples that end on the other side, plane by plane (out of core, each read once).
-    let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
-    flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
-    let mut edits: Vec<Edit> = Vec::new();
-    for same_plane in flipped.chunk_by(|a, b| a.0[2] == b.0[2]) {
-        let plane = vol.plane_once(same_plane[0].0[2]);
-        for &(q, was) in same_plane {
-            if plane.get(q[0] as isize, q[1] as isize) != was {
-                edits.push((vol.frame.to_original_i(q), !was));
-            }
-        }
-    }
-    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
+    let edits = final_edits(vol, original);
     Ok(Outcome {
         removed,
         kept: kept.into_iter().map(|(_, k)| k).collect(),
