@@ -35,10 +35,11 @@ def isotopo_bin():
     return exe
 
 
-def run_isotopo(*args, check=True):
-    """Runs isotopo; returns its stdout (parsed as JSON when --json is among the args)."""
+def run_isotopo(*args, check=True, timeout=None):
+    """Runs isotopo; returns its stdout (parsed as JSON when --json is among the args). With a
+    timeout, raises subprocess.TimeoutExpired when the run takes longer."""
     cmd = [isotopo_bin(), *map(str, args)]
-    p = subprocess.run(cmd, capture_output=True, text=True)
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     if check and p.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode}):\n{p.stderr}")
     if "--json" in args:
