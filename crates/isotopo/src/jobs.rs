@@ -5,7 +5,8 @@
 //! ```no_run
 //! use isotopo::{Source, SimplifyOptions};
 //!
-//! let opts = SimplifyOptions { tau: 20.0, ..SimplifyOptions::default() };
+//! let mut opts = SimplifyOptions { tau: 20.0, ..SimplifyOptions::default() };
+//! opts.surface.iso = 127.5; // a grey-matter probability map in 0..255
 //! let mut done = isotopo::simplify(Source::file("brain.nii.gz"), &opts, &isotopo::progress::NoProgress)?;
 //! println!("genus {} -> {}", done.before.b1, done.after.b1);
 //! done.write("brain-simplified.nii.gz", &isotopo::progress::NoProgress)?;
