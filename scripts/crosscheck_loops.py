@@ -17,9 +17,10 @@ exact shortest non-trivial cycles; it shares no code with isotopo's searches).
 3. Tori of known radii and tilts: both loops, shortest in millimetres, against the analytic
    lengths 2 pi r and 2 pi (R - r) (within 0.9-1.15 for R 40 r 12 tilt 15 and R 36 r 10 tilt 75).
 
-    python3 scripts/crosscheck_loops.py [--random N] [--seed S]
+    python3 scripts/crosscheck_loops.py [--random N] [--crops K] [--seed S]
 
-N random volumes (default 40); the README's number comes from --random 300.
+N random volumes (default 40; the README's number comes from --random 300), K crops of each real
+volume (default 2; CI takes 1: the oracle is slow on the embryo's crops of genus 200-400).
 """
 
 import math
@@ -141,6 +142,7 @@ def crops(tmp, rng, per_volume=2):
 
 def main(argv):
     n_random = int(argv[argv.index("--random") + 1]) if "--random" in argv else 40
+    per_volume = int(argv[argv.index("--crops") + 1]) if "--crops" in argv else 2
     seed = int(argv[argv.index("--seed") + 1]) if "--seed" in argv else 1
     rng = np.random.default_rng(seed)
     failures = []
@@ -168,7 +170,7 @@ def main(argv):
               f"smallest handle size != systole (edges or mm) on {mismatches} of {n_random}")
         if SHARED.exists():
             print("crops (40^3, centred on handles) of the real volumes")
-            for name, p, spacing in crops(tmp, rng):
+            for name, p, spacing in crops(tmp, rng, per_volume):
                 for conn in (6, 26):
                     f, data = check_volume(p, conn, "z", 20, 20.0 if max(spacing) > min(spacing) else None, tmp,
                                            f"crop of {name} (conn {conn})")
