@@ -1,6 +1,31 @@
 //! Numbers and JSON as the commands print them.
 
+use isotopo::grid::Axis;
+use isotopo::sweep::{HandleKind, HandleReport};
+use isotopo::topology::SurfaceOptions;
+use isotopo::volume::VolumeInfo;
 use isotopo::{Error, Result};
+
+/// The first line of `handles` and `analyze`: the file, the isosurface and the sweep axis.
+pub(crate) fn print_sweep_header(info: &VolumeInfo, opts: &SurfaceOptions, axis: Axis) {
+    println!(
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}",
+        info.path.display(),
+        num(opts.iso),
+        opts.inside.name(),
+        opts.connectivity.number(),
+        axis.name()
+    );
+}
+
+/// Handles that are Reeb cycles (the others were found inside a ribbon).
+pub(crate) fn reeb_cycles(report: &HandleReport) -> usize {
+    report
+        .handles
+        .iter()
+        .filter(|h| h.located.kind == HandleKind::ReebCycle)
+        .count()
+}
 
 pub(crate) fn group(n: u64) -> String {
     let s = n.to_string();

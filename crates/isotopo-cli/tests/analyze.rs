@@ -2,20 +2,10 @@
 //! documented keys with consistent values, the CSV one row per handle, the loop file and plots
 //! are written.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
-fn isotopo(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_isotopo"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
-}
+use common::isotopo;
+use std::path::Path;
 
 /// A 3-voxel-thick square ring (one large handle) and a ring closed by a one-voxel bridge (a
 /// handle of size 4), as a NumPy file.

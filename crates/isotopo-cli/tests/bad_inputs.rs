@@ -1,20 +1,11 @@
 //! Bad input gets a clear message and exit code 2, never a panic, and leaves no output behind.
 
+mod common;
+
+use common::isotopo;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn isotopo(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_isotopo"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
-}
 
 /// A valid little NIfTI-1 volume (4×3×2 int16) as bytes.
 fn nifti_bytes(datatype: i16, bitpix: i16, dims: [i16; 3]) -> Vec<u8> {

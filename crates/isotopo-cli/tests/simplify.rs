@@ -3,20 +3,10 @@
 //! report are written, and `isotopo genus` of the output agrees with the report (genus = handles
 //! kept, components and cavities unchanged), inside above and inside below the isovalue.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn isotopo(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_isotopo"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
-}
+use common::isotopo;
+use std::path::{Path, PathBuf};
 
 fn sample() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/mni2009a-gm.nii.gz")

@@ -127,19 +127,8 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
         print!("{}", analysis.to_csv());
         return Ok(());
     }
-    let reeb = report
-        .handles
-        .iter()
-        .filter(|h| h.located.kind == isotopo::sweep::HandleKind::ReebCycle)
-        .count();
-    println!(
-        "{}: iso {}, inside {}, connectivity {}, sweep along {}",
-        info.path.display(),
-        num(opts.iso),
-        opts.inside.name(),
-        opts.connectivity.number(),
-        axis.name()
-    );
+    let reeb = reeb_cycles(report);
+    print_sweep_header(&info, &opts, axis);
     println!(
         "handles     {} ({} Reeb cycles, {} intra-ribbon); genus from the Euler characteristic: {}",
         report.handles.len(),

@@ -44,19 +44,8 @@ pub(crate) fn run(a: HandlesArgs) -> Result<()> {
         println!("{}", to_json(&found.to_json(&aopts))?);
         return Ok(());
     }
-    let reeb = report
-        .handles
-        .iter()
-        .filter(|h| h.located.kind == isotopo::sweep::HandleKind::ReebCycle)
-        .count();
-    println!(
-        "{}: iso {}, inside {}, connectivity {}, sweep along {}",
-        info.path.display(),
-        num(opts.iso),
-        opts.inside.name(),
-        opts.connectivity.number(),
-        axis.name()
-    );
+    let reeb = reeb_cycles(report);
+    print_sweep_header(info, &opts, axis);
     println!(
         "handles     {} located ({} Reeb cycles, {} intra-ribbon); genus from the Euler characteristic: {}{}",
         report.handles.len(),
