@@ -847,31 +847,24 @@ fn close_loop(
                         None => continue,
                     }
                 }
-                Wall::PeelAlong(j, margin, _) => {
-                    let (moved, at) = moved_along(&points, centre, partner, j);
-                    let (region, b) = box_region(vol, &moved, margin);
+                // Peeled in a region: near the fan, a box round the loop, or that box moved
+                // along the partner (towards where the partner lands).
+                Wall::Peel(..) | Wall::PeelBox(..) | Wall::PeelAlong(..) => {
+                    let (region, b, at) = match w {
+                        Wall::Peel(d, _) => (near_fan(d), BBox::EMPTY, centre),
+                        Wall::PeelBox(margin, _) => {
+                            let (region, b) = box_region(vol, &points, margin);
+                            (region, b, centre)
+                        }
+                        Wall::PeelAlong(j, margin, _) => {
+                            let (moved, at) = moved_along(&points, centre, partner, j);
+                            let (region, b) = box_region(vol, &moved, margin);
+                            (region, b, at)
+                        }
+                        Wall::Fan(_) | Wall::Single(_) => unreachable!("matched above"),
+                    };
                     let target = peel_target(&points, partner, lp.length, b);
                     peeled = closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS);
-                    match peeled.first() {
-                        Some(x) => x.clone(),
-                        None => continue,
-                    }
-                }
-                Wall::Peel(d, _) => {
-                    let region = near_fan(d);
-                    let target = peel_target(&points, partner, lp.length, BBox::EMPTY);
-                    peeled =
-                        closure::peel_walls(vol, conn, &region, centre, op, &target, PEEL_CUTS);
-                    match peeled.first() {
-                        Some(x) => x.clone(),
-                        None => continue,
-                    }
-                }
-                Wall::PeelBox(margin, _) => {
-                    let (region, b) = box_region(vol, &points, margin);
-                    let target = peel_target(&points, partner, lp.length, b);
-                    peeled =
-                        closure::peel_walls(vol, conn, &region, centre, op, &target, PEEL_CUTS);
                     match peeled.first() {
                         Some(x) => x.clone(),
                         None => continue,
