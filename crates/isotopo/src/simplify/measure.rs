@@ -1,0 +1,193 @@
+//! Measuring the handles a step of the sweep found, with what is kept between steps and passes
+//! so the same loop is not searched twice.
+
+use super::plan::{loop_box, overlaps};
+use crate::grid::MaskVolume;
+use crate::loops::{self, HandleLoops, Limits, Metric, SliceCache};
+use crate::surface::search::{FastMap, Graph, GraphCache};
+use crate::sweep::{Handle, HandleKind, LocatedHandle};
+use crate::topology::cases::{cases, Connectivity};
+use crate::volume::{Affine, BBox};
+
+/// The surface graph's neighbourhoods and the slices' surfels, kept between the steps of the
+/// sweep (measuring from scratch costs ten times more) and brought up to date after each wall.
+pub(super) struct Caches {
+    pub(super) graph: GraphCache,
+    pub(super) slices: SliceCache,
+    /// Loops measured in this pass, by handle: after a rewind, the sweep finds the handles
+    /// above the walls again, and those whose loops lie away from every wall need not be
+    /// measured again. (A stale entry can only delay a closure to the next pass: the last pass
+    /// closes nothing, so its measurements are all fresh.)
+    pub(super) memo: FastMap<u64, HandleLoops>,
+    /// Handles of this pass (by [`memo_key`]) whose every wall was refused: after a rewind
+    /// they are kept again without trying, unless a wall landed near their loops since
+    /// (which forgets their measurement too).
+    pub(super) failed: FastMap<u64, ()>,
+}
+
+/// Measurements that stay exact from pass to pass: a handle's loops are searched within a reach
+/// of its curves (a loop shorter than r crossing a curve lies within r/2 edges of it, so within
+/// r/√2 voxels: no edge of the surface graph is longer than √2), so until a wall lands within
+/// that reach, measuring it again would find the same. The last pass, which must be an exact
+/// analysis of the result, then measures again only what the walls came near.
+#[derive(Default)]
+pub(super) struct Lasting {
+    /// By [`memo_key`]: the loops, and their reach (local coordinates).
+    entries: FastMap<u64, (HandleLoops, Reach)>,
+}
+
+/// Where the searches of a measurement reached: the blocks of [`LASTING_BLOCK`]³ samples within
+/// the margin of its curves' vertices, or for a wide margin (long loops, no limit) the box.
+enum Reach {
+    Blocks(FastMap<[i64; 3], ()>),
+    Box(BBox),
+}
+
+/// Side of the blocks a lasting measurement's reach is kept in.
+const LASTING_BLOCK: i64 = 8;
+
+/// Margins beyond which a reach is kept as a box (a vertex's blocks would be too many).
+const LASTING_MAX_BLOCK_MARGIN: i64 = 4 * LASTING_BLOCK;
+
+impl Lasting {
+    pub(super) fn get(&self, key: u64) -> Option<&HandleLoops> {
+        self.entries.get(&key).map(|e| &e.0)
+    }
+
+    /// Keeps a fresh measurement if its reach is known: its searches were exact (no budget ran
+    /// out), in voxel edges, and stopped at a finite limit (or found both loops).
+    pub(super) fn offer(&mut self, key: u64, l: &HandleLoops, limits: Limits) {
+        let r = if limits.below.is_finite() {
+            limits.below
+        } else {
+            match (&l.reeb, &l.cross) {
+                (Some(a), Some(b)) => a.length.max(b.length) as f64,
+                _ => return,
+            }
+        };
+        if !l.exact || limits.metric != Metric::Edges {
+            return;
+        }
+        let margin = (r * std::f64::consts::FRAC_1_SQRT_2).ceil() as i64 + 2;
+        let curves = [&l.reeb, &l.cross]
+            .into_iter()
+            .flatten()
+            .map(|x| &x.vertices[..]);
+        let basis = l.basis.iter().flat_map(|(p, q)| [&p[..], &q[..]]);
+        let vertices = curves.chain(basis).flatten();
+        let reach = if margin > LASTING_MAX_BLOCK_MARGIN {
+            let mut b = BBox::EMPTY;
+            for v in vertices {
+                b.include(v.p.map(|x| x - margin));
+                b.include(v.p.map(|x| x + 1 + margin));
+            }
+            Reach::Box(b)
+        } else {
+            let mut blocks = FastMap::default();
+            for v in vertices {
+                let lo = v.p.map(|x| (x - margin).div_euclid(LASTING_BLOCK));
+                let hi = v.p.map(|x| (x + 1 + margin).div_euclid(LASTING_BLOCK));
+                for z in lo[2]..=hi[2] {
+                    for y in lo[1]..=hi[1] {
+                        for x in lo[0]..=hi[0] {
+                            blocks.insert([x, y, z], ());
+                        }
+                    }
+                }
+            }
+            Reach::Blocks(blocks)
+        };
+        self.entries.insert(key, (l.clone(), reach));
+    }
+
+    /// Forgets the measurements within reach of one of the walls (local boxes).
+    pub(super) fn forget_near(&mut self, walls: &[BBox]) {
+        let touched: Vec<[i64; 3]> = walls
+            .iter()
+            .flat_map(|w| {
+                let lo = w.min.map(|x| x.div_euclid(LASTING_BLOCK));
+                let hi = w.max.map(|x| x.div_euclid(LASTING_BLOCK));
+                (lo[2]..=hi[2]).flat_map(move |z| {
+                    (lo[1]..=hi[1]).flat_map(move |y| (lo[0]..=hi[0]).map(move |x| [x, y, z]))
+                })
+            })
+            .collect();
+        self.entries.retain(|_, (_, reach)| match reach {
+            Reach::Blocks(blocks) => !touched.iter().any(|b| blocks.contains_key(b)),
+            Reach::Box(b) => !walls.iter().any(|w| overlaps(w, b, 0)),
+        });
+    }
+}
+
+/// Identity of a located handle across rewinds: its cut and where its cycle lies.
+pub(super) fn memo_key(h: &LocatedHandle) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut s = std::collections::hash_map::DefaultHasher::new();
+    (h.kind == HandleKind::IntraRibbon).hash(&mut s);
+    h.direct.hash(&mut s);
+    h.cut.hash(&mut s);
+    h.bbox.min.hash(&mut s);
+    h.bbox.max.hash(&mut s);
+    s.finish()
+}
+
+/// Neighbourhoods simplify keeps between handles before starting afresh: its searches stop at
+/// tau, so a smaller graph than analyze's (`MEASURE_GRAPH_LIMIT`) serves, and memory stays near
+/// the window's.
+const SIMPLIFY_GRAPH_LIMIT: usize = 1 << 18;
+
+impl Caches {
+    /// Measures the handles one step of the sweep found.
+    pub(super) fn measure(
+        &mut self,
+        vol: &MaskVolume,
+        new: &[LocatedHandle],
+        conn: Connectivity,
+        affine: &Affine,
+        limits: Limits,
+        lasting: &mut Lasting,
+    ) -> Vec<HandleLoops> {
+        if self.graph.len() > SIMPLIFY_GRAPH_LIMIT {
+            self.graph = GraphCache::default();
+        }
+        let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut self.graph));
+        let out = new
+            .iter()
+            .map(|h| {
+                let key = memo_key(h);
+                if let Some(l) = self.memo.get(&key).or_else(|| lasting.get(key)) {
+                    return l.clone();
+                }
+                let h = Handle {
+                    id: 0,
+                    surface: 0,
+                    located: h.clone(),
+                };
+                let l = loops::measure(&mut g, &mut self.slices, &h, conn, affine, limits);
+                lasting.offer(key, &l, limits);
+                self.memo.insert(key, l.clone());
+                l
+            })
+            .collect();
+        self.graph = g.into_cache();
+        out
+    }
+
+    /// Forgets the measurements whose loops come near one of the walls.
+    pub(super) fn forget_near(&mut self, walls: &[BBox]) {
+        self.memo.retain(|_, l| {
+            [&l.reeb, &l.cross].into_iter().flatten().all(|x| {
+                let b = loop_box(x);
+                !walls.iter().any(|w| {
+                    overlaps(w, &b, 2)
+                        && x.vertices.iter().any(|v| {
+                            let e = BBox { min: v.p, max: v.p };
+                            overlaps(w, &e, 2)
+                        })
+                })
+            })
+        });
+        let memo = &self.memo;
+        self.failed.retain(|k, _| memo.contains_key(k));
+    }
+}

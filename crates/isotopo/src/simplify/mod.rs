@@ -1,0 +1,500 @@
+//! Handle removal (paper §2.3): sweep, measure each handle as it is found, close the small ones,
+//! rebuild the Reeb graph where the volume changed, and carry on.
+//!
+//! ```text
+//!   slice s:  step the sweep ──> handles closed at s ──> measure their loops
+//!                  ^                                         │ smaller than tau?
+//!                  │                                         v
+//!             rewind to the lowest slice the walls touched <── close (fill or cut)
+//! ```
+//!
+//! A closure changes samples near its loop only, and can expose handles it did not remove
+//! (a wall across a nested handle) or shorten the loops of others. Rewinding re-sweeps every
+//! slice the walls touched, so newly exposed handles are found and measured like any other. A
+//! handle measured before a later wall landed nearby may have become smaller than `tau`, so the
+//! whole sweep runs again until a pass closes nothing: the last pass is exactly an analysis of
+//! the result, and what it keeps is what is reported as kept.
+//!
+//! Every closure is verified locally before it is kept ([`closure::close`]): it removes one handle
+//! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
+//! is checked again on the whole volume at the end.
+
+use crate::closure::Operation;
+use crate::error::{Error, Result};
+use crate::grid::{Axis, MaskVolume};
+use crate::loops::{Limits, Metric, SliceCache};
+use crate::progress::Progress;
+use crate::surface::search::{FastMap, GraphCache};
+use crate::surface::Vertex;
+use crate::sweep::{HandleKind, LocatedHandle, Sweeper};
+use crate::topology::genus::SurfaceOptions;
+use crate::volume::{Affine, BBox};
+
+mod certify;
+mod measure;
+mod plan;
+mod removal;
+mod walls;
+mod write;
+
+use certify::{certificate_holds, certify, Certificate};
+use measure::{memo_key, Caches, Lasting};
+use plan::{loop_box, overlaps, plan};
+use removal::{removal, Closure};
+use walls::{close_handle, Refused};
+use write::final_edits;
+pub use write::{write_edited, WallValues};
+
+/// Which closures are allowed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Fill or cut, whichever loop is smaller.
+    Both,
+    /// Only add material (close loops around void).
+    FillOnly,
+    /// Only remove material (close loops around material).
+    CutOnly,
+}
+
+impl Mode {
+    fn allows(self, op: Operation) -> bool {
+        match self {
+            Mode::Both => true,
+            Mode::FillOnly => op == Operation::Collapse,
+            Mode::CutOnly => op == Operation::Pinch,
+        }
+    }
+}
+
+/// What to simplify and how. Every field has a default (`SimplifyOptions::default()`); check a
+/// hand-made one with [`SimplifyOptions::validate`] (the entry point [`crate::simplify()`] does).
+#[derive(Clone, Copy, Debug)]
+pub struct SimplifyOptions {
+    /// The isosurface: isovalue (by default 0), inside above it (by default) and the solid's
+    /// connectivity (by default 6).
+    pub surface: SurfaceOptions,
+    /// The axis the sweep runs along; by default z. The result does not depend on it beyond
+    /// which of two equally short loops is closed.
+    pub axis: Axis,
+    /// Handles whose size (the shorter loop, in `metric` units) is below this are removed; by
+    /// default 20 voxel edges (the gap between noise and features on the real volumes);
+    /// infinity removes every handle.
+    pub tau: f64,
+    /// What `tau` is measured in: by default voxel edges (the paper's unit); or millimetres
+    /// along the interpolated surface, for anisotropic scans.
+    pub metric: Metric,
+    /// Which closures are allowed; by default both filling and cutting.
+    pub mode: Mode,
+    /// Keep handles whose longer loop is more than this many times the shorter (long skinny
+    /// handles, often real); by default none are kept for it.
+    pub max_ratio: Option<f64>,
+    /// Planes held in memory at once (the rest wait in a scratch file); by default as many as
+    /// fit in 16 MiB, the whole volume when it fits; `Some(0)`: the whole volume.
+    pub max_slices: Option<usize>,
+}
+
+impl Default for SimplifyOptions {
+    fn default() -> SimplifyOptions {
+        SimplifyOptions {
+            surface: SurfaceOptions::default(),
+            axis: Axis::Z,
+            tau: 20.0,
+            metric: Metric::Edges,
+            mode: Mode::Both,
+            max_ratio: None,
+            max_slices: None,
+        }
+    }
+}
+
+impl SimplifyOptions {
+    /// Refuses options no simplification can follow: tau not positive, a ratio below 1, an
+    /// isovalue that is not a number.
+    pub fn validate(&self) -> Result<()> {
+        if self.tau.is_nan() || self.tau <= 0.0 {
+            return Err(Error::usage("tau must be positive (or inf)"));
+        }
+        if self.max_ratio.is_some_and(|r| r.is_nan() || r < 1.0) {
+            return Err(Error::usage("the maximum ratio must be at least 1"));
+        }
+        if !self.surface.iso.is_finite() {
+            return Err(Error::usage("the isovalue must be a finite number"));
+        }
+        Ok(())
+    }
+
+    /// The searches' limits: longer loops cannot change a decision.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            below: self.tau * self.max_ratio.unwrap_or(1.0).max(1.0),
+            metric: self.metric,
+            // The ratio of the loops needs both measured; so does a mode that may close only
+            // one kind (the longer loop may be the kind it can close).
+            size_only: self.max_ratio.is_none() && self.mode == Mode::Both,
+        }
+    }
+}
+
+/// Which of a handle's loops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LoopKind {
+    Reeb,
+    Cross,
+}
+
+/// A handle that was removed.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Removed {
+    /// The handle's size: its shorter loop (voxel edges, and millimetres).
+    pub size: usize,
+    pub size_mm: f64,
+    pub reeb: Option<usize>,
+    pub cross: Option<usize>,
+    pub kind: HandleKind,
+    /// The loop that was closed, and how.
+    #[serde(rename = "loop")]
+    pub closed: LoopKind,
+    pub operation: Operation,
+    /// Length of the closed loop (voxel edges and mm).
+    pub length: usize,
+    pub length_mm: f64,
+    /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
+    /// `peeled_box` or `peeled_along` wall, the margin of the box it lies in).
+    pub thickness: f64,
+    /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`,
+    /// `peeled` (the samples near the fan thinned by simple samples and cut at the one sample
+    /// that cuts the ring the loop goes round), `peeled_box` (the same in a box round the
+    /// loop) or `peeled_along` (the same in that box moved along the other loop, where the
+    /// ring is cut away from this loop: its samples may lie far from `points`).
+    pub wall: &'static str,
+    /// Samples this closure flipped: how many, and which (original coordinates).
+    pub samples_changed: usize,
+    pub samples: Vec<[i64; 3]>,
+    /// Handles the wall removed: 1, or more when it also closed tiny handles right beside.
+    pub handles: usize,
+    /// Farthest flipped sample from the loop's polyline (voxels, and mm).
+    pub max_distance: f64,
+    pub max_distance_mm: f64,
+    /// The closed loop: polyline through edge midpoints, original voxel coordinates.
+    pub points: Vec<[f64; 3]>,
+    pub bbox: BBox,
+    /// Pass of the sweep (1-based) and slice at which it was closed.
+    pub pass: usize,
+    pub slice: i64,
+}
+
+/// Why a handle was kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KeepReason {
+    /// Both loops at or above tau.
+    Size,
+    /// Long and skinny: loop ratio above `--max-ratio`.
+    Ratio,
+    /// Its small loop is of the kind `--fill-only` / `--cut-only` excludes.
+    Mode,
+    /// No wall across its loops removed it cleanly.
+    ClosureFailed,
+    /// Its Reeb loop could not be found within the search budget.
+    Unmeasured,
+    /// Still below tau after the last pass allowed.
+    PassLimit,
+}
+
+/// A handle left in the result.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Kept {
+    /// The shorter loop's length in edges, and in millimetres.
+    pub size: Option<usize>,
+    pub size_mm: Option<f64>,
+    pub reeb: Option<usize>,
+    pub cross: Option<usize>,
+    pub kind: HandleKind,
+    pub reason: KeepReason,
+    pub bbox: BBox,
+}
+
+/// A sample to change, in original coordinates, and whether it becomes inside.
+pub type Edit = ([i64; 3], bool);
+
+/// What simplification did.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub removed: Vec<Removed>,
+    /// The handles of the result (the last pass's analysis).
+    pub kept: Vec<Kept>,
+    /// Samples whose side changed, sorted by (z, y, x).
+    pub edits: Vec<Edit>,
+    /// Intra-ribbon handles the first pass met on its first visit of each slice.
+    pub intra_ribbon: usize,
+    /// Full sweeps run (the last one closed nothing, unless the limit was reached).
+    pub passes: usize,
+    /// With a finite tau (both operations, no `--max-ratio`): is it proven that the result has
+    /// no non-separating loop shorter than tau? Every kept handle has two closed curves that no
+    /// loop below tau crosses an odd number of times, and together they span every loop of the
+    /// surface (see [`crate::loops::basis`]). `None` where no such promise is made.
+    pub certified: Option<bool>,
+    /// How often the sweep stepped back after closures.
+    pub rewinds: usize,
+    /// Closures tried and refused by the local check, and why.
+    pub refused: usize,
+    pub refused_by: std::collections::BTreeMap<&'static str, usize>,
+    /// Seconds spent stepping the sweep, measuring loops and closing them.
+    pub seconds: StageSeconds,
+}
+
+/// Where the time went.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageSeconds {
+    pub sweep: f64,
+    pub loops: f64,
+    pub closures: f64,
+}
+
+/// How many full sweeps may run; the last must close nothing.
+const MAX_PASSES: usize = 8;
+
+/// After the last allowed pass closed something, its measurements may be stale: a handle kept
+/// for its size that measured below tau says so.
+fn mark_stale(kept: &mut [(i64, Kept)], opts: &SimplifyOptions) {
+    for (_, k) in kept {
+        let size = match opts.metric {
+            Metric::Edges => k.size.map(|s| s as f64),
+            Metric::Millimetres => k.size_mm,
+        };
+        if size.is_some_and(|s| s < opts.tau) && k.reason == KeepReason::Size {
+            k.reason = KeepReason::PassLimit;
+        }
+    }
+}
+
+/// Removes every handle of `vol` smaller than `opts.tau` (see the module documentation). `vol`
+/// is edited in place; the outcome lists the edits in original coordinates.
+pub fn simplify(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    affine: &Affine,
+    progress: &dyn Progress,
+) -> Result<Outcome> {
+    let conn = opts.surface.connectivity;
+    let limits = opts.limits();
+    let mut removed: Vec<Removed> = Vec::new();
+    // First flip of each sample: local coordinates -> its original side.
+    let mut original: FastMap<[i64; 3], bool> = FastMap::default();
+    let (mut rewinds, mut refused) = (0, Refused::default());
+    let mut intra_ribbon = 0;
+    let mut kept: Vec<(i64, Kept)> = Vec::new();
+    let mut pass = 0;
+    let mut seconds = StageSeconds::default();
+    // The certificate: closed curves that no loop below tau crosses an odd number of times,
+    // from the last pass (see `certify`), and whether every kept handle has them.
+    let certifying = opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none();
+    let mut basis: Vec<(i64, Vec<Vec<Vertex>>)> = Vec::new();
+    let mut certified = None;
+    let mut lasting = Lasting::default();
+    loop {
+        pass += 1;
+        kept.clear();
+        basis.clear();
+        let closed_before = removed.len();
+        let mut sweeper = Sweeper::new(conn);
+        let mut caches = Caches {
+            graph: GraphCache::default(),
+            slices: SliceCache::new(conn),
+            memo: FastMap::default(),
+            failed: FastMap::default(),
+        };
+        progress.start(&format!("pass {pass}"), vol.dims[2] as u64 + 1);
+        // Highest slice stepped so far: slices above it are seen for the first time.
+        let mut high = -2;
+        while !sweeper.done(vol) {
+            let s = sweeper.next;
+            let t = std::time::Instant::now();
+            let n = sweeper.step(vol)?;
+            if let Some((at, surfels)) = sweeper.take_surfels() {
+                // The loops of the handles found here need this slice's ribbons too.
+                caches.slices.offer(at, surfels);
+            }
+            vol.follow_sweep(sweeper.next)?;
+            seconds.sweep += t.elapsed().as_secs_f64();
+            let first_visit = s > high;
+            if first_visit {
+                progress.advance((s - high) as u64);
+                progress.message(&format!("{} removed", removed.len()));
+                high = s;
+            }
+            if n == 0 {
+                continue;
+            }
+            let all = sweeper.handles();
+            let new: Vec<LocatedHandle> = all[all.len() - n..]
+                .iter()
+                .map(|(_, h)| h.clone())
+                .collect();
+            sweeper.release_handles();
+            if pass == 1 && first_visit {
+                intra_ribbon += new
+                    .iter()
+                    .filter(|h| h.kind == HandleKind::IntraRibbon)
+                    .count();
+            }
+            let t = std::time::Instant::now();
+            let measured = caches.measure(vol, &new, conn, affine, limits, &mut lasting);
+            seconds.loops += t.elapsed().as_secs_f64();
+            for (h, l) in new.iter().zip(&measured) {
+                progress.trace(format_args!(
+                    "measured {:?} at slice {s}: reeb {:?} cross {:?}, cycle of {} nodes",
+                    h.kind,
+                    l.reeb.as_ref().map(|x| x.length),
+                    l.cross.as_ref().map(|x| x.length),
+                    h.cycle.len()
+                ));
+            }
+            let t = std::time::Instant::now();
+            let mut order: Vec<usize> = (0..n).collect();
+            let size = |i: usize| measured[i].size_in(opts.metric).unwrap_or(f64::INFINITY);
+            order.sort_by(|&a, &b| size(a).total_cmp(&size(b)));
+            // Ribbons of this step whose generators were checked.
+            let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
+            // Walls written at this step, as local boxes; the lowest slice they touched.
+            let mut walls: Vec<BBox> = Vec::new();
+            let mut lowest = i64::MAX;
+            for i in order {
+                let (h, l) = (&new[i], &measured[i]);
+                let keep = |reason| Kept {
+                    size: l.size(),
+                    size_mm: l.size_in(Metric::Millimetres),
+                    reeb: l.reeb.as_ref().map(|x| x.length),
+                    cross: l.cross.as_ref().map(|x| x.length),
+                    kind: h.kind,
+                    reason,
+                    bbox: l.bbox().unwrap_or(h.bbox),
+                };
+                // A handle with no loop below tau is kept once its curves are certified: no
+                // loop below tau crosses them (see `certify`); else the loop found is closed.
+                let found_loops;
+                let (l, candidates) = match plan(l, opts) {
+                    Ok(c) => (l, c),
+                    Err(KeepReason::Size) if certifying => {
+                        match certify(vol, h, l, conn, limits, affine, &mut caches, &mut ribbons) {
+                            Certificate::Curves(curves) => {
+                                basis.push((s, curves));
+                                kept.push((s, keep(KeepReason::Size)));
+                                continue;
+                            }
+                            Certificate::Shared => {
+                                kept.push((s, keep(KeepReason::Size)));
+                                continue;
+                            }
+                            Certificate::Unsure => {
+                                kept.push((s, keep(KeepReason::Unmeasured)));
+                                continue;
+                            }
+                            Certificate::Below(short) => {
+                                found_loops = short;
+                                let c = plan(&found_loops, opts).expect("a loop below tau");
+                                (&found_loops, c)
+                            }
+                        }
+                    }
+                    Err(reason) => {
+                        kept.push((s, keep(reason)));
+                        continue;
+                    }
+                };
+                // Measured before this step's walls: if one landed near, measure again after
+                // the rewind.
+                if candidates
+                    .iter()
+                    .any(|(_, x)| walls.iter().any(|w| overlaps(w, &loop_box(x), 2)))
+                {
+                    continue;
+                }
+                let key = memo_key(h);
+                if caches.failed.contains_key(&key) {
+                    kept.push((s, keep(KeepReason::ClosureFailed)));
+                    continue;
+                }
+                let done = close_handle(
+                    vol,
+                    opts,
+                    l,
+                    &candidates,
+                    affine,
+                    &mut caches.graph,
+                    &mut refused,
+                );
+                let Some((which, lp, applied, wall_kind)) = done else {
+                    caches.failed.insert(key, ());
+                    kept.push((s, keep(KeepReason::ClosureFailed)));
+                    continue;
+                };
+                let mut wall = BBox::EMPTY;
+                for q in &applied.changed {
+                    wall.include(*q);
+                    original.entry(*q).or_insert(!applied.op.target());
+                }
+                lowest = lowest.min(wall.min[2]);
+                caches.slices.invalidate(wall.min[2], wall.max[2]);
+                walls.push(wall);
+                let closure = Closure {
+                    which,
+                    lp: &lp,
+                    applied: &applied,
+                    wall: wall_kind,
+                };
+                removed.push(removal(vol, h, l, closure, affine, (pass, s)));
+            }
+            seconds.closures += t.elapsed().as_secs_f64();
+            if !walls.is_empty() {
+                // Slice lowest - 1 has a corner in the wall's lowest plane; redo from there,
+                // and at least from s (this step's handles, measured before the walls).
+                let to = (lowest - 1).min(s);
+                caches.forget_near(&walls);
+                lasting.forget_near(&walls);
+                sweeper.rewind(vol, to);
+                kept.retain(|(at, _)| *at < to);
+                basis.retain(|(at, _)| *at < to);
+                rewinds += 1;
+                vol.follow_sweep(sweeper.next)?;
+            }
+        }
+        progress.finish();
+        if removed.len() == closed_before {
+            // The last pass: what it kept is the result; check its certificate.
+            certified = certifying.then(|| certificate_holds(vol, conn, &kept, &basis, progress));
+        }
+        vol.follow_sweep(sweeper.next)?;
+        progress.trace(format_args!(
+            "pass {pass} done: {} closed, {rewinds} rewinds so far, refused {:?}, {seconds:?}",
+            removed.len() - closed_before,
+            refused.by
+        ));
+        if removed.len() == closed_before {
+            break;
+        }
+        if pass == MAX_PASSES {
+            mark_stale(&mut kept, opts);
+            break;
+        }
+    }
+    if certifying && certified.is_none() {
+        // The pass limit was reached: the last pass closed something.
+        certified = Some(false);
+    }
+    let edits = final_edits(vol, original);
+    Ok(Outcome {
+        removed,
+        kept: kept.into_iter().map(|(_, k)| k).collect(),
+        edits,
+        intra_ribbon,
+        passes: pass,
+        certified,
+        rewinds,
+        refused: refused.total,
+        refused_by: refused.by,
+        seconds,
+    })
+}

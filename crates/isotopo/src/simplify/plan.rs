@@ -1,0 +1,75 @@
+//! Which of a handle's loops to close, and the boxes used to tell whether a wall came near.
+
+use super::{KeepReason, LoopKind, SimplifyOptions};
+use crate::closure::Operation;
+use crate::loops::{Encloses, HandleLoops, Loop};
+use crate::volume::BBox;
+
+/// The loops worth closing, best first, or why none is.
+pub(super) fn plan<'l>(
+    l: &'l HandleLoops,
+    opts: &SimplifyOptions,
+) -> std::result::Result<Vec<(LoopKind, &'l Loop)>, KeepReason> {
+    let Some(reeb) = &l.reeb else {
+        return Err(KeepReason::Unmeasured);
+    };
+    let small: Vec<(LoopKind, &Loop)> = [
+        (LoopKind::Reeb, Some(reeb)),
+        (LoopKind::Cross, l.cross.as_ref()),
+    ]
+    .into_iter()
+    .filter_map(|(k, x)| x.map(|x| (k, x)))
+    .filter(|(_, x)| x.length_in(opts.metric) < opts.tau)
+    .collect();
+    if small.is_empty() {
+        return Err(KeepReason::Size);
+    }
+    if let Some(r) = opts.max_ratio {
+        // A missing cross loop is longer than tau · ratio (the search limit), so the ratio is
+        // above r whenever the Reeb loop is below tau.
+        let ratio = match &l.cross {
+            Some(c) => {
+                let (a, b) = (reeb.length_in(opts.metric), c.length_in(opts.metric));
+                a.max(b) / a.min(b).max(1e-9)
+            }
+            None => f64::INFINITY,
+        };
+        if ratio > r {
+            return Err(KeepReason::Ratio);
+        }
+    }
+    let mut allowed: Vec<(LoopKind, &Loop)> = small
+        .into_iter()
+        .filter(|(_, x)| opts.mode.allows(operation_for(x)))
+        .collect();
+    if allowed.is_empty() {
+        return Err(KeepReason::Mode);
+    }
+    allowed.sort_by(|a, b| {
+        a.1.length_in(opts.metric)
+            .total_cmp(&b.1.length_in(opts.metric))
+    });
+    Ok(allowed)
+}
+
+/// Closing a loop around void fills; closing one around material cuts.
+pub(super) fn operation_for(l: &Loop) -> Operation {
+    match l.encloses {
+        Encloses::Void => Operation::Collapse,
+        Encloses::Material => Operation::Pinch,
+    }
+}
+
+/// Local box of a loop's vertices.
+pub(super) fn loop_box(l: &Loop) -> BBox {
+    let mut b = BBox::EMPTY;
+    for v in &l.vertices {
+        b.include(v.p);
+        b.include(v.end());
+    }
+    b
+}
+
+pub(super) fn overlaps(a: &BBox, b: &BBox, margin: i64) -> bool {
+    (0..3).all(|k| a.min[k] - margin <= b.max[k] && b.min[k] <= a.max[k] + margin)
+}

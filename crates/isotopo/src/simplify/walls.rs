@@ -1,0 +1,431 @@
+//! Walls across a handle's loops, tried in order until the local check accepts one: fans of
+//! growing thickness, single samples, then peeled regions near the fan, in a box round the loop,
+//! and in that box moved along the partner loop.
+
+use super::plan::operation_for;
+use super::{LoopKind, Mode, SimplifyOptions};
+use crate::closure::{self, base_thickness, opposite, Operation};
+use crate::grid::MaskVolume;
+use crate::loops::{self, HandleLoops, Loop};
+use crate::surface::geometry::Geometry;
+use crate::surface::search::{Graph, GraphCache};
+use crate::surface::Vertex;
+use crate::topology::cases::{cases, Connectivity};
+use crate::volume::{Affine, BBox};
+
+/// Loops this short that no fan wall closes get a try with single samples near their centroid,
+/// within this reach (voxels; reported as the wall's thickness).
+const SINGLE_SAMPLE_LOOP: usize = 8;
+const SINGLE_SAMPLE_REACH: f64 = 1.8;
+
+/// Wall half-thicknesses tried beyond the base one before giving up on a loop.
+const EXTRA_THICKNESS: [f64; 3] = [0.0, 0.5, 1.0];
+
+/// The thickest fan wall: the largest base thickness (√3/2) plus the largest extra.
+const MAX_FAN_THICKNESS: f64 = 0.866_025_403_784_438_6 + 1.0;
+
+/// A wall to try across a loop.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Wall {
+    /// The samples within this distance of the loop's spanning fan.
+    Fan(f64),
+    /// One sample near the centroid of a short loop.
+    Single([i64; 3]),
+    /// The samples near the fan (within this distance) thinned by simple samples, then cut at
+    /// the k-th sample that cuts the ring the loop goes round (see [`closure::peel_walls`]).
+    Peel(f64, usize),
+    /// The same with every sample of the box round the loop, this much larger than the loop's:
+    /// for a long twisted loop whose fan is far from the disk it bounds.
+    PeelBox(i64, usize),
+    /// The same box moved along the partner loop (the j-th of [`PEEL_ALONG`] steps round it),
+    /// margin as given: where the ring cannot be cut near the loop without cutting something
+    /// else too (a bar hollow there, a tunnel with a speck of material in it), it may be
+    /// further on.
+    PeelAlong(usize, i64, usize),
+}
+
+impl Wall {
+    pub(super) fn thickness(self) -> f64 {
+        match self {
+            Wall::Fan(d) => d,
+            Wall::Single(_) => SINGLE_SAMPLE_REACH,
+            Wall::Peel(d, _) => d,
+            Wall::PeelBox(margin, _) | Wall::PeelAlong(_, margin, _) => margin as f64,
+        }
+    }
+
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Wall::Fan(_) => "fan",
+            Wall::Single(_) => "single_sample",
+            Wall::Peel(..) => "peeled",
+            Wall::PeelBox(..) => "peeled_box",
+            Wall::PeelAlong(..) => "peeled_along",
+        }
+    }
+}
+
+/// The walls tried across a loop, in order: fans of growing thickness; for a short loop round a
+/// corner or edge contact, single samples (one may do); then walls peeled down to the one sample
+/// that cuts the ring the loop goes round, in regions near the fan, then in boxes round the
+/// loop (see [`closure::peel_walls`]: these always remove a handle and split nothing; the
+/// regions grow until one holds a cut). Or, reaching along, boxes moved along the partner.
+fn walls_for(
+    lp: &Loop,
+    op: Operation,
+    conn: Connectivity,
+    partner: &[Vertex],
+    reach: WallReach,
+) -> Vec<Wall> {
+    let wide = (lp.length as i64 / 4).max(2 * PEEL_BOX_MARGIN);
+    if reach == WallReach::Along {
+        if partner.is_empty() {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for margin in [PEEL_BOX_MARGIN, wide] {
+            for j in 1..PEEL_ALONG {
+                out.extend((0..PEEL_CUTS).map(|k| Wall::PeelAlong(j, margin, k)));
+            }
+        }
+        return out;
+    }
+    let mut out: Vec<Wall> = EXTRA_THICKNESS
+        .iter()
+        .map(|extra| Wall::Fan(base_thickness(op, conn) + extra))
+        .collect();
+    if lp.length <= SINGLE_SAMPLE_LOOP {
+        out.extend(
+            closure::single_sample_walls(&lp.vertices, SINGLE_SAMPLE_REACH)
+                .into_iter()
+                .map(Wall::Single),
+        );
+    }
+    for d in PEEL_REACH {
+        out.extend((0..PEEL_CUTS).map(|k| Wall::Peel(d, k)));
+    }
+    for margin in [PEEL_BOX_MARGIN, wide] {
+        out.extend((0..PEEL_CUTS).map(|k| Wall::PeelBox(margin, k)));
+    }
+    out
+}
+
+/// Steps round the partner loop at which the box round the loop is moved and peeled again.
+const PEEL_ALONG: usize = 8;
+
+/// Samples of a peeled region tried as the cut, nearest the loop's centroid first.
+const PEEL_CUTS: usize = 8;
+
+/// Distances from the fan of the regions peeled, tried in turn.
+const PEEL_REACH: [f64; 3] = [1.5, 3.0, 5.0];
+
+/// Margin of the first box round the loop peeled whole (the second: a quarter of the loop).
+const PEEL_BOX_MARGIN: i64 = 2;
+
+/// Samples a box peeled whole may hold (beyond, the box is not tried: peeling costs about a
+/// microsecond per sample).
+const MAX_PEEL_BOX: usize = 1 << 20;
+
+/// The samples of the box round the loop's points with a margin, within the volume (none if
+/// there are more than [`MAX_PEEL_BOX`]).
+fn box_region(vol: &MaskVolume, points: &[[f64; 3]], margin: i64) -> (Vec<[i64; 3]>, BBox) {
+    let mut b = BBox::EMPTY;
+    for p in points {
+        b.include(p.map(|x| x.floor() as i64 - margin));
+        b.include(p.map(|x| x.ceil() as i64 + margin));
+    }
+    let dims = vol.dims.map(|n| n as i64);
+    let lo: [i64; 3] = std::array::from_fn(|k| b.min[k].max(0));
+    let hi: [i64; 3] = std::array::from_fn(|k| b.max[k].min(dims[k] - 1));
+    let size: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+    if size as usize > MAX_PEEL_BOX {
+        return (Vec::new(), b);
+    }
+    let mut out = Vec::new();
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                out.push([x, y, z]);
+            }
+        }
+    }
+    (out, b)
+}
+
+/// Where a peeled wall across the loop looks for the ring it cuts: the box of the loop and its
+/// partner (which runs round that ring), with a margin (without a partner, a quarter of the
+/// loop), and the peeled region's box.
+fn peel_target<'a>(
+    points: &'a [[f64; 3]],
+    partner: &[Vertex],
+    length: usize,
+    region: BBox,
+) -> closure::PeelTarget<'a> {
+    let margin = if partner.is_empty() {
+        (length as i64 / 4).max(PEEL_RING_MARGIN)
+    } else {
+        PEEL_RING_MARGIN
+    };
+    let mut b = BBox::EMPTY;
+    for p in points {
+        b.include(p.map(|x| x.floor() as i64));
+        b.include(p.map(|x| x.ceil() as i64));
+    }
+    for v in partner {
+        b.include(v.p);
+        b.include(v.end());
+    }
+    let (mut lo, mut hi) = (b.min.map(|x| x - margin), b.max.map(|x| x + margin));
+    if region != BBox::EMPTY {
+        lo = std::array::from_fn(|k| lo[k].min(region.min[k]));
+        hi = std::array::from_fn(|k| hi[k].max(region.max[k]));
+    }
+    closure::PeelTarget {
+        loop_points: points,
+        lo,
+        hi,
+    }
+}
+
+/// Where a peeled wall is wanted: where the loop's partner crosses it (the partner, pushed off
+/// the surface, is the ring the wall must cut), else the loop's centroid. The region is peeled
+/// towards it, and cuts are tried nearest it first.
+fn peel_centre(points: &[[f64; 3]], partner: &[Vertex]) -> [f64; 3] {
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let crossing = points
+        .iter()
+        .flat_map(|&p| partner.iter().map(move |v| (d2(p, v.midpoint()), p)))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    match crossing {
+        Some((_, p)) => p,
+        None => crate::surface::geometry::centroid(points),
+    }
+}
+
+/// The loop's points moved along its partner by `j` of [`PEEL_ALONG`] steps from where the
+/// partner crosses the loop (`centre`), and where that step lands.
+fn moved_along(
+    points: &[[f64; 3]],
+    centre: [f64; 3],
+    partner: &[Vertex],
+    j: usize,
+) -> (Vec<[f64; 3]>, [f64; 3]) {
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let start = (0..partner.len())
+        .min_by(|&a, &b| {
+            d2(partner[a].midpoint(), centre).total_cmp(&d2(partner[b].midpoint(), centre))
+        })
+        .unwrap_or(0);
+    let at = partner[(start + j * partner.len() / PEEL_ALONG) % partner.len()].midpoint();
+    let shift: [f64; 3] = std::array::from_fn(|k| at[k] - centre[k]);
+    let moved = points
+        .iter()
+        .map(|p| std::array::from_fn(|k| p[k] + shift[k]))
+        .collect();
+    (moved, at)
+}
+
+/// Margin of the box round a loop and its partner where a peeled wall's ring is looked for.
+const PEEL_RING_MARGIN: i64 = 3;
+
+/// Tries the walls across `lp` by each of `ops` until one is kept (see [`closure::close`]).
+fn close_loop(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    lp: &Loop,
+    partner: &[Vertex],
+    ops: &[Operation],
+    (reach, graph, refused): (WallReach, &mut GraphCache, &mut Refused),
+) -> Option<(closure::Applied, Wall)> {
+    let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
+    let centre = peel_centre(&points, partner);
+    let mut peeled: Vec<Vec<[i64; 3]>> = Vec::new();
+    // The samples near the fan, gathered once as far as the walls tried so far need.
+    let mut near: Option<closure::NearFan> = None;
+    let mut near_fan = |d: f64| -> Vec<[i64; 3]> {
+        if near.as_ref().is_none_or(|n| n.reach < d) {
+            // Fans need up to their thickest; peeled regions, the widest reach at once.
+            let reach = if d <= MAX_FAN_THICKNESS {
+                MAX_FAN_THICKNESS
+            } else {
+                PEEL_REACH[PEEL_REACH.len() - 1]
+            };
+            near = Some(closure::NearFan::new(&points, reach.max(d)));
+        }
+        near.as_ref().expect("set above").within(d)
+    };
+    for &op in ops {
+        for w in walls_for(lp, op, conn, partner, reach) {
+            let samples = match w {
+                Wall::Fan(d) => near_fan(d),
+                Wall::Single([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
+                Wall::Single(q) => vec![q],
+                // Peeled once per region; its cuts are tried in turn.
+                Wall::Peel(_, k) | Wall::PeelBox(_, k) | Wall::PeelAlong(_, _, k) if k > 0 => {
+                    match peeled.get(k) {
+                        Some(x) => x.clone(),
+                        None => continue,
+                    }
+                }
+                // Peeled in a region: near the fan, a box round the loop, or that box moved
+                // along the partner (towards where the partner lands).
+                Wall::Peel(..) | Wall::PeelBox(..) | Wall::PeelAlong(..) => {
+                    let (region, b, at) = match w {
+                        Wall::Peel(d, _) => (near_fan(d), BBox::EMPTY, centre),
+                        Wall::PeelBox(margin, _) => {
+                            let (region, b) = box_region(vol, &points, margin);
+                            (region, b, centre)
+                        }
+                        Wall::PeelAlong(j, margin, _) => {
+                            let (moved, at) = moved_along(&points, centre, partner, j);
+                            let (region, b) = box_region(vol, &moved, margin);
+                            (region, b, at)
+                        }
+                        Wall::Fan(_) | Wall::Single(_) => unreachable!("matched above"),
+                    };
+                    let target = peel_target(&points, partner, lp.length, b);
+                    peeled = closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS);
+                    match peeled.first() {
+                        Some(x) => x.clone(),
+                        None => continue,
+                    }
+                }
+            };
+            let attempt = closure::Attempt {
+                lp: &lp.vertices,
+                partner,
+                op,
+                wall: samples,
+                certified: !matches!(w, Wall::Fan(_) | Wall::Single(_)),
+            };
+            let r = closure::close(vol, conn, attempt, graph);
+            match r {
+                Ok(applied) => return Some((applied, w)),
+                Err(why) => {
+                    refused.total += 1;
+                    *refused.by.entry(why.name()).or_default() += 1;
+                }
+            }
+        }
+    }
+    None
+}
+
+/// Closes one of a handle's loops: the candidates (loops below tau, shortest first), then, if
+/// every wall across them is refused, the handle's other loop whatever its length (measured now
+/// if its search stopped at tau). Walls across the loops come first; walls moved along their
+/// partners (slower, and farther from the loop) only when no loop has one. Returns the loop
+/// closed, how, and with which wall.
+pub(super) fn close_handle<'l>(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    l: &'l HandleLoops,
+    candidates: &[(LoopKind, &'l Loop)],
+    affine: &Affine,
+    graph: &mut GraphCache,
+    refused: &mut Refused,
+) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+    let mut by = |reach: WallReach| {
+        close_handle_by(vol, opts, l, candidates, affine, (graph, refused), reach)
+    };
+    by(WallReach::Across).or_else(|| by(WallReach::Along))
+}
+
+/// Walls the local check refused: how many, and why (by [`closure::Refusal::name`]).
+#[derive(Default)]
+pub(super) struct Refused {
+    pub(super) total: usize,
+    pub(super) by: std::collections::BTreeMap<&'static str, usize>,
+}
+
+/// Where the walls tried across a loop lie.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum WallReach {
+    /// Across the loop: fans, single samples, regions near the fan and boxes round the loop.
+    Across,
+    /// In the box round the loop moved along its partner.
+    Along,
+}
+
+/// [`close_handle`] with the walls of one reach.
+fn close_handle_by<'l>(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    l: &'l HandleLoops,
+    candidates: &[(LoopKind, &'l Loop)],
+    affine: &Affine,
+    (graph, refused): (&mut GraphCache, &mut Refused),
+    reach: WallReach,
+) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+    let conn = opts.surface.connectivity;
+    let partner_of = |which: LoopKind| match which {
+        LoopKind::Reeb => l.cross.as_ref(),
+        LoopKind::Cross => l.reeb.as_ref(),
+    };
+    // Without a partner loop, the side the loop goes round was judged from its fan alone: if
+    // no wall of that kind closes it, try the other kind (every wall is verified either way).
+    let ops_for = |lp: &Loop, has_partner: bool| {
+        let op = operation_for(lp);
+        if !has_partner && opts.mode == Mode::Both {
+            vec![op, opposite(op)]
+        } else {
+            vec![op]
+        }
+    };
+    for &(which, lp) in candidates {
+        let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
+        let ops = ops_for(lp, !partner.is_empty());
+        if let Some((a, w)) = close_loop(vol, conn, lp, partner, &ops, (reach, graph, refused)) {
+            return Some((which, std::borrow::Cow::Borrowed(lp), a, w));
+        }
+    }
+    // The other loop of the shortest candidate, however long.
+    let &(which, lp) = candidates.first()?;
+    let other = match which {
+        LoopKind::Reeb => LoopKind::Cross,
+        LoopKind::Cross => LoopKind::Reeb,
+    };
+    let found = match partner_of(which) {
+        Some(x) => std::borrow::Cow::Borrowed(x),
+        None => {
+            let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(graph));
+            let x = loops::cross_loop(&mut g, &lp.vertices, usize::MAX);
+            *graph = g.into_cache();
+            let geometry = Geometry {
+                affine,
+                fractions: vol.fractions.as_ref(),
+            };
+            std::borrow::Cow::Owned(loops::describe(vol, &x?, Some(&lp.vertices), &geometry))
+        }
+    };
+    let ops = ops_for(&found, true);
+    let ops: Vec<Operation> = ops.into_iter().filter(|&op| opts.mode.allows(op)).collect();
+    if let Some((a, w)) = close_loop(
+        vol,
+        conn,
+        &found,
+        &lp.vertices,
+        &ops,
+        (reach, graph, refused),
+    ) {
+        return Some((other, found, a, w));
+    }
+    // Last, the handle's two curves that cross once (its cut and the loop round its cycle): a
+    // closure of either removes the handle too, and the cut, a contour, spans a flat region.
+    let (p, q) = l.basis.as_ref()?;
+    for (x, y) in [(p, q), (q, p)] {
+        let geometry = Geometry {
+            affine,
+            fractions: vol.fractions.as_ref(),
+        };
+        let lx = loops::describe(vol, x, Some(y), &geometry);
+        let ops: Vec<Operation> = [Operation::Collapse, Operation::Pinch]
+            .into_iter()
+            .filter(|&op| opts.mode.allows(op))
+            .collect();
+        if let Some((a, w)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused)) {
+            return Some((other, std::borrow::Cow::Owned(lx), a, w));
+        }
+    }
+    None
+}

@@ -1,0 +1,128 @@
+//! Writing the result: the samples that changed side, the values written for them, and the
+//! edited volume streamed to a new file.
+
+use super::Edit;
+use crate::error::{Error, Result};
+use crate::grid::MaskVolume;
+use crate::progress::Progress;
+use crate::surface::search::FastMap;
+use crate::topology::Classifier;
+use crate::volume::{DType, Samples, SliceReader, VolumeInfo};
+use std::path::Path;
+
+/// The samples that end on the other side (`original`: each flipped sample's first side),
+/// in original coordinates, plane by plane (out of core, each plane read once).
+pub(super) fn final_edits(vol: &mut MaskVolume, original: FastMap<[i64; 3], bool>) -> Vec<Edit> {
+    let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
+    flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
+    let mut edits: Vec<Edit> = Vec::new();
+    for same_plane in flipped.chunk_by(|a, b| a.0[2] == b.0[2]) {
+        let plane = vol.plane_once(same_plane[0].0[2]);
+        for &(q, was) in same_plane {
+            if plane.get(q[0] as isize, q[1] as isize) != was {
+                edits.push((vol.frame.to_original_i(q), !was));
+            }
+        }
+    }
+    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
+    edits
+}
+
+/// Stored values written for inside and outside samples: the representable values nearest the
+/// isovalue on each side (for floating-point samples, a relative margin of 2^-10 keeps the new
+/// surface from sitting exactly on the samples).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct WallValues {
+    pub inside: Option<f64>,
+    pub outside: Option<f64>,
+}
+
+impl WallValues {
+    pub fn new(dtype: DType, classifier: &Classifier) -> WallValues {
+        let s = classifier.scaling;
+        // The isovalue in stored units.
+        let raw_iso = (classifier.iso - s.inter) / s.slope;
+        let (lo, hi) = dtype.range();
+        let ok = |raw: f64, inside: bool| -> bool {
+            raw.is_finite()
+                && raw >= lo
+                && raw <= hi
+                && round_trip(dtype, raw) == raw
+                && classifier.inside_raw(raw) == inside
+        };
+        let pick = |inside: bool| -> Option<f64> {
+            let mut candidates: Vec<f64> = Vec::new();
+            if dtype.is_float() {
+                let eps = raw_iso.abs().max(1.0) / 1024.0;
+                for k in [1.0, 2.0, 4.0] {
+                    candidates.push(round_trip(dtype, raw_iso + k * eps));
+                    candidates.push(round_trip(dtype, raw_iso - k * eps));
+                }
+            } else {
+                let f = raw_iso.floor();
+                for k in -2..=3 {
+                    candidates.push((f + k as f64).clamp(lo, hi));
+                }
+            }
+            candidates
+                .into_iter()
+                .filter(|&r| ok(r, inside))
+                .min_by(|a, b| (a - raw_iso).abs().total_cmp(&(b - raw_iso).abs()))
+        };
+        WallValues {
+            inside: pick(true),
+            outside: pick(false),
+        }
+    }
+}
+
+/// The nearest value of the type (for floats; integers are passed through).
+fn round_trip(dtype: DType, v: f64) -> f64 {
+    match dtype {
+        DType::F32 => v as f32 as f64,
+        _ => v,
+    }
+}
+
+/// Streams `reader` to a new file `out`, with the edited samples set to the wall values.
+pub fn write_edited(
+    reader: &mut dyn SliceReader,
+    out: &Path,
+    edits: &[Edit],
+    values: &WallValues,
+    progress: &dyn Progress,
+) -> Result<()> {
+    reader.rewind()?;
+    let info: VolumeInfo = reader.info().clone();
+    let [nx, ny, nz] = info.dims;
+    let mut writer = crate::volume::create(out, &info)?;
+    let mut slice = Samples::new(info.dtype);
+    let mut next = 0;
+    progress.start("write", nz as u64);
+    for z in 0..nz {
+        reader.read_slice(&mut slice)?;
+        while next < edits.len() && edits[next].0[2] == z as i64 {
+            let ([x, y, _], inside) = edits[next];
+            let v = if inside {
+                values.inside
+            } else {
+                values.outside
+            }
+            .ok_or_else(|| {
+                Error::Internal(format!(
+                    "no {} value representable in {}",
+                    if inside { "inside" } else { "outside" },
+                    info.dtype
+                ))
+            })?;
+            debug_assert!((x as usize) < nx && (y as usize) < ny);
+            slice.set_f64(y as usize * nx + x as usize, v);
+            next += 1;
+        }
+        writer.write_slice(&slice)?;
+        progress.advance(1);
+    }
+    progress.finish();
+    let info = reader.info().clone();
+    writer.finish(&info)
+}
