@@ -137,6 +137,15 @@ pub(super) fn memo_key(h: &LocatedHandle) -> u64 {
 const SIMPLIFY_GRAPH_LIMIT: usize = 1 << 18;
 
 impl Caches {
+    pub(super) fn new(conn: Connectivity) -> Caches {
+        Caches {
+            graph: GraphCache::default(),
+            slices: SliceCache::new(conn),
+            memo: FastMap::default(),
+            failed: FastMap::default(),
+        }
+    }
+
     /// Measures the handles one step of the sweep found.
     pub(super) fn measure(
         &mut self,

@@ -22,13 +22,15 @@
 use crate::closure::Operation;
 use crate::error::{Error, Result};
 use crate::grid::{Axis, MaskVolume};
-use crate::loops::{Limits, Metric, SliceCache};
+use crate::loops::{HandleLoops, Limits, Loop, Metric};
 use crate::progress::Progress;
-use crate::surface::search::{FastMap, GraphCache};
+use crate::surface::search::FastMap;
 use crate::surface::Vertex;
 use crate::sweep::{HandleKind, LocatedHandle, Sweeper};
+use crate::topology::cases::Connectivity;
 use crate::topology::genus::SurfaceOptions;
 use crate::volume::{Affine, BBox};
+use std::borrow::Cow;
 
 mod certify;
 mod measure;
@@ -278,223 +280,350 @@ pub fn simplify(
     affine: &Affine,
     progress: &dyn Progress,
 ) -> Result<Outcome> {
-    let conn = opts.surface.connectivity;
-    let limits = opts.limits();
-    let mut removed: Vec<Removed> = Vec::new();
-    // First flip of each sample: local coordinates -> its original side.
-    let mut original: FastMap<[i64; 3], bool> = FastMap::default();
-    let (mut rewinds, mut refused) = (0, Refused::default());
-    let mut intra_ribbon = 0;
-    let mut kept: Vec<(i64, Kept)> = Vec::new();
-    let mut pass = 0;
-    let mut seconds = StageSeconds::default();
-    // The certificate: closed curves that no loop below tau crosses an odd number of times,
-    // from the last pass (see `certify`), and whether every kept handle has them.
-    let certifying = opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none();
-    let mut basis: Vec<(i64, Vec<Vec<Vertex>>)> = Vec::new();
-    let mut certified = None;
-    let mut lasting = Lasting::default();
-    loop {
-        pass += 1;
-        kept.clear();
-        basis.clear();
-        let closed_before = removed.len();
-        let mut sweeper = Sweeper::new(conn);
-        let mut caches = Caches {
-            graph: GraphCache::default(),
-            slices: SliceCache::new(conn),
-            memo: FastMap::default(),
-            failed: FastMap::default(),
-        };
-        progress.start(&format!("pass {pass}"), vol.dims[2] as u64 + 1);
+    let mut run = Run::new(opts, affine, progress);
+    while run.passes < MAX_PASSES {
+        if run.sweep_pass(vol)? == 0 {
+            break;
+        }
+        if run.passes == MAX_PASSES {
+            mark_stale(&mut run.kept, opts);
+            if run.certifying {
+                // The pass limit was reached: the last pass closed something.
+                run.certified = Some(false);
+            }
+        }
+    }
+    Ok(run.outcome(vol))
+}
+
+/// What simplify carries from step to step and pass to pass.
+struct Run<'a> {
+    opts: &'a SimplifyOptions,
+    affine: &'a Affine,
+    progress: &'a dyn Progress,
+    conn: Connectivity,
+    limits: Limits,
+    /// Whether the result gets a certificate: closed curves that no loop below tau crosses an
+    /// odd number of times for each kept handle (see `certify`), from the last pass.
+    certifying: bool,
+    certified: Option<bool>,
+    /// Passes started so far.
+    passes: usize,
+    removed: Vec<Removed>,
+    /// What the current pass keeps, with the slice it was found at.
+    kept: Vec<(i64, Kept)>,
+    /// The certificate's curves of the current pass, with the slice they were found at.
+    basis: Vec<(i64, Vec<Vec<Vertex>>)>,
+    /// First flip of each sample: local coordinates -> its original side.
+    original: FastMap<[i64; 3], bool>,
+    lasting: Lasting,
+    rewinds: usize,
+    refused: Refused,
+    intra_ribbon: usize,
+    seconds: StageSeconds,
+}
+
+impl<'a> Run<'a> {
+    fn new(opts: &'a SimplifyOptions, affine: &'a Affine, progress: &'a dyn Progress) -> Run<'a> {
+        Run {
+            opts,
+            affine,
+            progress,
+            conn: opts.surface.connectivity,
+            limits: opts.limits(),
+            certifying: opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none(),
+            certified: None,
+            passes: 0,
+            removed: Vec::new(),
+            kept: Vec::new(),
+            basis: Vec::new(),
+            original: FastMap::default(),
+            lasting: Lasting::default(),
+            rewinds: 0,
+            refused: Refused::default(),
+            intra_ribbon: 0,
+            seconds: StageSeconds::default(),
+        }
+    }
+
+    /// One sweep over the whole volume, closing what it can; returns how many handles it closed.
+    /// A pass that closes nothing is the last: what it kept is the result, and its certificate
+    /// is checked.
+    fn sweep_pass(&mut self, vol: &mut MaskVolume) -> Result<usize> {
+        self.passes += 1;
+        self.kept.clear();
+        self.basis.clear();
+        let closed_before = self.removed.len();
+        let mut sweeper = Sweeper::new(self.conn);
+        let mut caches = Caches::new(self.conn);
+        let progress = self.progress;
+        progress.start(&format!("pass {}", self.passes), vol.dims[2] as u64 + 1);
         // Highest slice stepped so far: slices above it are seen for the first time.
         let mut high = -2;
         while !sweeper.done(vol) {
             let s = sweeper.next;
-            let t = std::time::Instant::now();
-            let n = sweeper.step(vol)?;
-            if let Some((at, surfels)) = sweeper.take_surfels() {
-                // The loops of the handles found here need this slice's ribbons too.
-                caches.slices.offer(at, surfels);
-            }
-            vol.follow_sweep(sweeper.next)?;
-            seconds.sweep += t.elapsed().as_secs_f64();
+            let new = self.step(vol, &mut sweeper, &mut caches)?;
             let first_visit = s > high;
             if first_visit {
                 progress.advance((s - high) as u64);
-                progress.message(&format!("{} removed", removed.len()));
+                progress.message(&format!("{} removed", self.removed.len()));
                 high = s;
             }
-            if n == 0 {
+            if new.is_empty() {
                 continue;
             }
-            let all = sweeper.handles();
-            let new: Vec<LocatedHandle> = all[all.len() - n..]
-                .iter()
-                .map(|(_, h)| h.clone())
-                .collect();
-            sweeper.release_handles();
-            if pass == 1 && first_visit {
-                intra_ribbon += new
-                    .iter()
-                    .filter(|h| h.kind == HandleKind::IntraRibbon)
-                    .count();
+            if self.passes == 1 && first_visit {
+                let intra = new.iter().filter(|h| h.kind == HandleKind::IntraRibbon);
+                self.intra_ribbon += intra.count();
             }
+            let measured = self.measure(vol, &mut caches, &new, s);
             let t = std::time::Instant::now();
-            let measured = caches.measure(vol, &new, conn, affine, limits, &mut lasting);
-            seconds.loops += t.elapsed().as_secs_f64();
-            for (h, l) in new.iter().zip(&measured) {
-                progress.trace(format_args!(
-                    "measured {:?} at slice {s}: reeb {:?} cross {:?}, cycle of {} nodes",
-                    h.kind,
-                    l.reeb.as_ref().map(|x| x.length),
-                    l.cross.as_ref().map(|x| x.length),
-                    h.cycle.len()
-                ));
-            }
-            let t = std::time::Instant::now();
-            let mut order: Vec<usize> = (0..n).collect();
-            let size = |i: usize| measured[i].size_in(opts.metric).unwrap_or(f64::INFINITY);
-            order.sort_by(|&a, &b| size(a).total_cmp(&size(b)));
-            // Ribbons of this step whose generators were checked.
-            let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
-            // Walls written at this step, as local boxes; the lowest slice they touched.
-            let mut walls: Vec<BBox> = Vec::new();
-            let mut lowest = i64::MAX;
-            for i in order {
-                let (h, l) = (&new[i], &measured[i]);
-                let keep = |reason| Kept {
-                    size: l.size(),
-                    size_mm: l.size_in(Metric::Millimetres),
-                    reeb: l.reeb.as_ref().map(|x| x.length),
-                    cross: l.cross.as_ref().map(|x| x.length),
-                    kind: h.kind,
-                    reason,
-                    bbox: l.bbox().unwrap_or(h.bbox),
-                };
-                // A handle with no loop below tau is kept once its curves are certified: no
-                // loop below tau crosses them (see `certify`); else the loop found is closed.
-                let found_loops;
-                let (l, candidates) = match plan(l, opts) {
-                    Ok(c) => (l, c),
-                    Err(KeepReason::Size) if certifying => {
-                        match certify(vol, h, l, conn, limits, affine, &mut caches, &mut ribbons) {
-                            Certificate::Curves(curves) => {
-                                basis.push((s, curves));
-                                kept.push((s, keep(KeepReason::Size)));
-                                continue;
-                            }
-                            Certificate::Shared => {
-                                kept.push((s, keep(KeepReason::Size)));
-                                continue;
-                            }
-                            Certificate::Unsure => {
-                                kept.push((s, keep(KeepReason::Unmeasured)));
-                                continue;
-                            }
-                            Certificate::Below(short) => {
-                                found_loops = short;
-                                let c = plan(&found_loops, opts).expect("a loop below tau");
-                                (&found_loops, c)
-                            }
-                        }
-                    }
-                    Err(reason) => {
-                        kept.push((s, keep(reason)));
-                        continue;
-                    }
-                };
-                // Measured before this step's walls: if one landed near, measure again after
-                // the rewind.
-                if candidates
-                    .iter()
-                    .any(|(_, x)| walls.iter().any(|w| overlaps(w, &loop_box(x), 2)))
-                {
-                    continue;
-                }
-                let key = memo_key(h);
-                if caches.failed.contains_key(&key) {
-                    kept.push((s, keep(KeepReason::ClosureFailed)));
-                    continue;
-                }
-                let done = close_handle(
-                    vol,
-                    opts,
-                    l,
-                    &candidates,
-                    affine,
-                    &mut caches.graph,
-                    &mut refused,
-                );
-                let Some((which, lp, applied, wall_kind)) = done else {
-                    caches.failed.insert(key, ());
-                    kept.push((s, keep(KeepReason::ClosureFailed)));
-                    continue;
-                };
-                let mut wall = BBox::EMPTY;
-                for q in &applied.changed {
-                    wall.include(*q);
-                    original.entry(*q).or_insert(!applied.op.target());
-                }
-                lowest = lowest.min(wall.min[2]);
-                caches.slices.invalidate(wall.min[2], wall.max[2]);
-                walls.push(wall);
-                let closure = Closure {
-                    which,
-                    lp: &lp,
-                    applied: &applied,
-                    wall: wall_kind,
-                };
-                removed.push(removal(vol, h, l, closure, affine, (pass, s)));
-            }
-            seconds.closures += t.elapsed().as_secs_f64();
+            let walls = self.close_small(vol, &mut caches, &new, &measured, s);
+            self.seconds.closures += t.elapsed().as_secs_f64();
             if !walls.is_empty() {
-                // Slice lowest - 1 has a corner in the wall's lowest plane; redo from there,
-                // and at least from s (this step's handles, measured before the walls).
-                let to = (lowest - 1).min(s);
-                caches.forget_near(&walls);
-                lasting.forget_near(&walls);
-                sweeper.rewind(vol, to);
-                kept.retain(|(at, _)| *at < to);
-                basis.retain(|(at, _)| *at < to);
-                rewinds += 1;
-                vol.follow_sweep(sweeper.next)?;
+                self.rewind(vol, &mut sweeper, &mut caches, &walls, s)?;
             }
         }
         progress.finish();
-        if removed.len() == closed_before {
-            // The last pass: what it kept is the result; check its certificate.
-            certified = certifying.then(|| certificate_holds(vol, conn, &kept, &basis, progress));
+        let closed = self.removed.len() - closed_before;
+        if closed == 0 && self.certifying {
+            let holds = certificate_holds(vol, self.conn, &self.kept, &self.basis, progress);
+            self.certified = Some(holds);
         }
         vol.follow_sweep(sweeper.next)?;
         progress.trace(format_args!(
-            "pass {pass} done: {} closed, {rewinds} rewinds so far, refused {:?}, {seconds:?}",
-            removed.len() - closed_before,
-            refused.by
+            "pass {} done: {closed} closed, {} rewinds so far, refused {:?}, {:?}",
+            self.passes, self.rewinds, self.refused.by, self.seconds
         ));
-        if removed.len() == closed_before {
-            break;
+        Ok(closed)
+    }
+
+    /// Steps the sweep one slice; returns the handles it found.
+    fn step(
+        &mut self,
+        vol: &mut MaskVolume,
+        sweeper: &mut Sweeper,
+        caches: &mut Caches,
+    ) -> Result<Vec<LocatedHandle>> {
+        let t = std::time::Instant::now();
+        let n = sweeper.step(vol)?;
+        if let Some((at, surfels)) = sweeper.take_surfels() {
+            // The loops of the handles found here need this slice's ribbons too.
+            caches.slices.offer(at, surfels);
         }
-        if pass == MAX_PASSES {
-            mark_stale(&mut kept, opts);
-            break;
+        vol.follow_sweep(sweeper.next)?;
+        self.seconds.sweep += t.elapsed().as_secs_f64();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let all = sweeper.handles();
+        let new = all[all.len() - n..]
+            .iter()
+            .map(|(_, h)| h.clone())
+            .collect();
+        sweeper.release_handles();
+        Ok(new)
+    }
+
+    /// The loops of the handles found at slice `s`.
+    fn measure(
+        &mut self,
+        vol: &MaskVolume,
+        caches: &mut Caches,
+        new: &[LocatedHandle],
+        s: i64,
+    ) -> Vec<HandleLoops> {
+        let t = std::time::Instant::now();
+        let (conn, affine, limits) = (self.conn, self.affine, self.limits);
+        let measured = caches.measure(vol, new, conn, affine, limits, &mut self.lasting);
+        self.seconds.loops += t.elapsed().as_secs_f64();
+        for (h, l) in new.iter().zip(&measured) {
+            self.progress.trace(format_args!(
+                "measured {:?} at slice {s}: reeb {:?} cross {:?}, cycle of {} nodes",
+                h.kind,
+                l.reeb.as_ref().map(|x| x.length),
+                l.cross.as_ref().map(|x| x.length),
+                h.cycle.len()
+            ));
+        }
+        measured
+    }
+
+    /// Closes the small handles found at slice `s`, smallest first; returns the walls written,
+    /// as local boxes.
+    fn close_small(
+        &mut self,
+        vol: &mut MaskVolume,
+        caches: &mut Caches,
+        new: &[LocatedHandle],
+        measured: &[HandleLoops],
+        s: i64,
+    ) -> Vec<BBox> {
+        let mut order: Vec<usize> = (0..new.len()).collect();
+        let size = |i: usize| {
+            measured[i]
+                .size_in(self.opts.metric)
+                .unwrap_or(f64::INFINITY)
+        };
+        order.sort_by(|&a, &b| size(a).total_cmp(&size(b)));
+        // Ribbons of this step whose generators were checked.
+        let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
+        let mut walls: Vec<BBox> = Vec::new();
+        for i in order {
+            let at = Found {
+                handle: &new[i],
+                loops: &measured[i],
+                slice: s,
+            };
+            if let Some(wall) = self.settle(vol, caches, &mut ribbons, &walls, at) {
+                walls.push(wall);
+            }
+        }
+        walls
+    }
+
+    /// Closes one handle or keeps it (and says why); returns the wall written, if any.
+    fn settle(
+        &mut self,
+        vol: &mut MaskVolume,
+        caches: &mut Caches,
+        ribbons: &mut FastMap<(i64, u32), ()>,
+        walls: &[BBox],
+        at: Found,
+    ) -> Option<BBox> {
+        let Found {
+            handle: h,
+            slice: s,
+            ..
+        } = at;
+        let l = self.loops_to_close(vol, caches, ribbons, at)?;
+        let candidates = plan(&l, self.opts).expect("a loop below tau");
+        // Measured before this step's walls: if one landed near, measure again after the
+        // rewind.
+        let near = |x: &Loop| walls.iter().any(|w| overlaps(w, &loop_box(x), 2));
+        if candidates.iter().any(|(_, x)| near(x)) {
+            return None;
+        }
+        let key = memo_key(h);
+        if caches.failed.contains_key(&key) {
+            self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
+            return None;
+        }
+        let (opts, affine) = (self.opts, self.affine);
+        let graph = &mut caches.graph;
+        let done = close_handle(vol, opts, &l, &candidates, affine, graph, &mut self.refused);
+        let Some((which, lp, applied, wall_kind)) = done else {
+            caches.failed.insert(key, ());
+            self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
+            return None;
+        };
+        let mut wall = BBox::EMPTY;
+        for q in &applied.changed {
+            wall.include(*q);
+            self.original.entry(*q).or_insert(!applied.op.target());
+        }
+        caches.slices.invalidate(wall.min[2], wall.max[2]);
+        let closure = Closure {
+            which,
+            lp: &lp,
+            applied: &applied,
+            wall: wall_kind,
+        };
+        let at_pass = (self.passes, s);
+        self.removed
+            .push(removal(vol, h, &l, closure, affine, at_pass));
+        Some(wall)
+    }
+
+    /// The loops to close for a handle, or `None` once it is kept. A handle with no loop below
+    /// tau is kept once its curves are certified: no loop below tau crosses them (see
+    /// `certify`); if the search for that finds a loop below tau, that one is closed.
+    fn loops_to_close<'l>(
+        &mut self,
+        vol: &MaskVolume,
+        caches: &mut Caches,
+        ribbons: &mut FastMap<(i64, u32), ()>,
+        at: Found<'l>,
+    ) -> Option<Cow<'l, HandleLoops>> {
+        let (h, l, s) = (at.handle, at.loops, at.slice);
+        let reason = match plan(l, self.opts) {
+            Ok(_) => return Some(Cow::Borrowed(l)),
+            Err(KeepReason::Size) if self.certifying => {
+                let (conn, limits, affine) = (self.conn, self.limits, self.affine);
+                match certify(vol, h, l, conn, limits, affine, caches, ribbons) {
+                    Certificate::Curves(curves) => {
+                        self.basis.push((s, curves));
+                        KeepReason::Size
+                    }
+                    Certificate::Shared => KeepReason::Size,
+                    Certificate::Unsure => KeepReason::Unmeasured,
+                    Certificate::Below(short) => return Some(Cow::Owned(short)),
+                }
+            }
+            Err(reason) => reason,
+        };
+        self.kept.push((s, at.kept(reason)));
+        None
+    }
+
+    /// After walls were written at slice `s`: sweep again from the lowest slice they touched.
+    fn rewind(
+        &mut self,
+        vol: &mut MaskVolume,
+        sweeper: &mut Sweeper,
+        caches: &mut Caches,
+        walls: &[BBox],
+        s: i64,
+    ) -> Result<()> {
+        let lowest = walls.iter().map(|w| w.min[2]).min().unwrap_or(i64::MAX);
+        // Slice lowest - 1 has a corner in the wall's lowest plane; redo from there, and at
+        // least from s (this step's handles, measured before the walls).
+        let to = (lowest - 1).min(s);
+        caches.forget_near(walls);
+        self.lasting.forget_near(walls);
+        sweeper.rewind(vol, to);
+        self.kept.retain(|(at, _)| *at < to);
+        self.basis.retain(|(at, _)| *at < to);
+        self.rewinds += 1;
+        vol.follow_sweep(sweeper.next)
+    }
+
+    fn outcome(self, vol: &mut MaskVolume) -> Outcome {
+        Outcome {
+            removed: self.removed,
+            kept: self.kept.into_iter().map(|(_, k)| k).collect(),
+            edits: final_edits(vol, self.original),
+            intra_ribbon: self.intra_ribbon,
+            passes: self.passes,
+            certified: self.certified,
+            rewinds: self.rewinds,
+            refused: self.refused.total,
+            refused_by: self.refused.by,
+            seconds: self.seconds,
         }
     }
-    if certifying && certified.is_none() {
-        // The pass limit was reached: the last pass closed something.
-        certified = Some(false);
+}
+
+/// A handle found at a slice of the sweep, with its loops as measured.
+#[derive(Clone, Copy)]
+struct Found<'l> {
+    handle: &'l LocatedHandle,
+    loops: &'l HandleLoops,
+    slice: i64,
+}
+
+impl Found<'_> {
+    /// The report of the handle kept, by its loops as measured.
+    fn kept(&self, reason: KeepReason) -> Kept {
+        let (h, l) = (self.handle, self.loops);
+        Kept {
+            size: l.size(),
+            size_mm: l.size_in(Metric::Millimetres),
+            reeb: l.reeb.as_ref().map(|x| x.length),
+            cross: l.cross.as_ref().map(|x| x.length),
+            kind: h.kind,
+            reason,
+            bbox: l.bbox().unwrap_or(h.bbox),
+        }
     }
-    let edits = final_edits(vol, original);
-    Ok(Outcome {
-        removed,
-        kept: kept.into_iter().map(|(_, k)| k).collect(),
-        edits,
-        intra_ribbon,
-        passes: pass,
-        certified,
-        rewinds,
-        refused: refused.total,
-        refused_by: refused.by,
-        seconds,
-    })
 }
