@@ -284,11 +284,36 @@ impl Sweeper {
     }
 
     /// Processes the next slice; returns how many handles it found.
+    ///
+    /// ```text
+    ///   plane s+1   ── top contours (new nodes) ──
+    ///   slice s        ribbons (new nodes): a ribbon joined to a contour it already reaches
+    ///                  closes a Reeb cycle; a ribbon of genus g holds g handles of its own
+    ///   plane s     ── bottom contours (from the step below) ──
+    /// ```
     pub fn step(&mut self, vol: &MaskVolume) -> Result<usize> {
-        let conn = self.conn;
-        let table = cases(conn);
         let s = self.next;
         let found_before = self.handles.len();
+        self.push_checkpoint(s);
+        let cur = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, self.conn);
+        let ribbon_node = self.add_ribbons(vol, &cur, s);
+        self.locate_probe(&cur, &ribbon_node, s)?;
+        let bottom_of = self.bottom_contours(&cur, s)?;
+        self.close_cycles(vol, &bottom_of, &ribbon_node, s)?;
+        let (top, contour_node, top_count) = self.add_top_contours(&cur, &ribbon_node, s);
+        for r in 0..cur.ribbons.len() {
+            let b = bottom_of[r].len() as i64 + top_count[r] as i64;
+            self.ribbon_handles(vol, &cur, r, b, ribbon_node[r], s)?;
+        }
+        self.prev_contours = top;
+        self.prev_contour_node = contour_node;
+        self.next = s + 1;
+        self.last_surfels = Some((s, cur));
+        Ok(self.handles.len() - found_before)
+    }
+
+    /// What [`Sweeper::rewind`] needs to undo slice `s` and everything above.
+    fn push_checkpoint(&mut self, s: i64) {
         self.checkpoints.truncate((s + 1) as usize);
         self.checkpoints.push(Checkpoint {
             nodes: self.graph.nodes.len(),
@@ -299,7 +324,11 @@ impl Sweeper {
             probe_node: self.probe_node,
             contour_base: 0,
         });
-        let cur = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+    }
+
+    /// A node per ribbon of slice `s`, with its box, Euler characteristic and the key that
+    /// numbers surfaces (its lowest cube in original coordinates).
+    fn add_ribbons(&mut self, vol: &MaskVolume, cur: &SliceSurfels, s: i64) -> Vec<u32> {
         let ribbon_node: Vec<u32> = (0..cur.ribbons.len())
             .map(|r| {
                 let id = self.add_node(NodeKind::Ribbon, s as i32, r as u32);
@@ -309,7 +338,7 @@ impl Sweeper {
                 id
             })
             .collect();
-        // Lowest cube (original coordinates) of each ribbon, for numbering surfaces.
+        let table = cases(self.conn);
         let mut keys = vec![[i64::MAX; 4]; cur.ribbons.len()];
         let least_corner = self
             .least_corner
@@ -328,20 +357,32 @@ impl Sweeper {
         for (r, k) in keys.into_iter().enumerate() {
             self.ribbon_key.push((ribbon_node[r], k));
         }
-        if let Some(p) = self.probe.filter(|p| p.w == s) {
-            let q = cur
-                .find_cube((p.u + 1) as u32, (p.v + 1) as u32)
-                .ok_or_else(|| Error::Internal("probe cube is not on the surface".into()))?;
-            let cube = cur.cubes[q];
-            let k = table[cube.case as usize]
-                .pieces
-                .iter()
-                .position(|pc| pc.corners & (1 << p.corner) != 0)
-                .ok_or_else(|| Error::Internal("probe corner owns no piece".into()))?;
-            self.probe_node =
-                Some(ribbon_node[cur.piece_ribbon[cube.first_piece as usize + k] as usize]);
-        }
-        // Bottom contours of each ribbon (plane s), distinct.
+        ribbon_node
+    }
+
+    /// The node of the ribbon the probe's corner lies on, when the probe is in slice `s`.
+    fn locate_probe(&mut self, cur: &SliceSurfels, ribbon_node: &[u32], s: i64) -> Result<()> {
+        let Some(p) = self.probe.filter(|p| p.w == s) else {
+            return Ok(());
+        };
+        let table = cases(self.conn);
+        let q = cur
+            .find_cube((p.u + 1) as u32, (p.v + 1) as u32)
+            .ok_or_else(|| Error::Internal("probe cube is not on the surface".into()))?;
+        let cube = cur.cubes[q];
+        let k = table[cube.case as usize]
+            .pieces
+            .iter()
+            .position(|pc| pc.corners & (1 << p.corner) != 0)
+            .ok_or_else(|| Error::Internal("probe corner owns no piece".into()))?;
+        self.probe_node =
+            Some(ribbon_node[cur.piece_ribbon[cube.first_piece as usize + k] as usize]);
+        Ok(())
+    }
+
+    /// The contour nodes of plane s below each ribbon of slice s, distinct.
+    fn bottom_contours(&self, cur: &SliceSurfels, s: i64) -> Result<Vec<Vec<u32>>> {
+        let table = cases(self.conn);
         let mut bottom_of: Vec<Vec<u32>> = vec![Vec::new(); cur.ribbons.len()];
         if cur.bottom.len() * 2 != self.prev_contours.of_segment.len() {
             return Err(Error::Internal(format!(
@@ -363,70 +404,95 @@ impl Sweeper {
                 }
             }
         }
-        // Cycles: a ribbon meeting a contour already connected to it closes one.
-        let surface = Graph::new(vol, table);
+        Ok(bottom_of)
+    }
+
+    /// Joins each ribbon to the contours below it: a contour already connected to the ribbon
+    /// closes a Reeb cycle, a handle.
+    fn close_cycles(
+        &mut self,
+        vol: &MaskVolume,
+        bottom_of: &[Vec<u32>],
+        ribbon_node: &[u32],
+        s: i64,
+    ) -> Result<()> {
+        let surface = Graph::new(vol, cases(self.conn));
         for (r, bottom) in bottom_of.iter().enumerate() {
             let rn = ribbon_node[r];
             for &c in bottom {
                 if self.graph.connected(c, rn) {
-                    // The cycle avoids the contours cut for earlier handles and is cut at one of
-                    // its own (see `is_cut`).
-                    let path = self
-                        .graph
-                        .shortest_path(rn, c, &self.is_cut)
-                        .ok_or_else(|| Error::Internal("connected nodes without a path".into()))?;
-                    let mut bbox = BBox::EMPTY;
-                    let mut shortest: Option<(Vertex, u32, i32, u32)> = None;
-                    for &n in &path {
-                        let node = self.graph.nodes[n as usize];
-                        match node.kind {
-                            NodeKind::Ribbon => bbox.union(&self.ribbon_boxes[n as usize]),
-                            NodeKind::Contour => {
-                                let (v, len) = self.contour_at[n as usize];
-                                if shortest.is_none_or(|x| len < x.1) {
-                                    shortest = Some((v, len, node.level, n));
-                                }
-                            }
-                        }
-                    }
-                    let (v, _, level, cut_node) = shortest
-                        .ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
-                    self.is_cut[cut_node as usize] = true;
-                    let cut = walk_contour(&surface, v, level as i64)
-                        .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
-                    let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
-                    let contour_starts = path
-                        .iter()
-                        .map(|&n| self.contour_at[n as usize].0)
-                        .collect();
-                    let cut_at = path.iter().position(|&n| n == cut_node).unwrap_or(0);
-                    self.handles.push((
-                        s,
-                        LocatedHandle {
-                            kind: HandleKind::ReebCycle,
-                            direct: false,
-                            cycle,
-                            volume: CycleVolume::Top,
-                            cut,
-                            allowed: None,
-                            top_node: rn,
-                            cut_node: Some(cut_node),
-                            ribbon: None,
-                            contour_starts,
-                            cut_at,
-                            bbox,
-                        },
-                    ));
+                    let h = self.reeb_cycle(&surface, rn, c)?;
+                    self.handles.push((s, h));
                 }
                 self.graph.add_edge(c, rn);
             }
         }
-        // Contours of the upper plane, each joined to the ribbon below it.
-        let top = contours::label(&cur, 5, table, &mut self.uf);
+        Ok(())
+    }
+
+    /// The handle of the cycle that joining ribbon node `rn` to contour node `c` closes. The
+    /// cycle avoids the contours cut for earlier handles and is cut at its shortest contour
+    /// (see `is_cut`).
+    fn reeb_cycle(&mut self, surface: &Graph, rn: u32, c: u32) -> Result<LocatedHandle> {
+        let path = self
+            .graph
+            .shortest_path(rn, c, &self.is_cut)
+            .ok_or_else(|| Error::Internal("connected nodes without a path".into()))?;
+        let mut bbox = BBox::EMPTY;
+        let mut shortest: Option<(Vertex, u32, i32, u32)> = None;
+        for &n in &path {
+            let node = self.graph.nodes[n as usize];
+            match node.kind {
+                NodeKind::Ribbon => bbox.union(&self.ribbon_boxes[n as usize]),
+                NodeKind::Contour => {
+                    let (v, len) = self.contour_at[n as usize];
+                    if shortest.is_none_or(|x| len < x.1) {
+                        shortest = Some((v, len, node.level, n));
+                    }
+                }
+            }
+        }
+        let (v, _, level, cut_node) =
+            shortest.ok_or_else(|| Error::Internal("a Reeb cycle without contours".into()))?;
+        self.is_cut[cut_node as usize] = true;
+        let cut = walk_contour(surface, v, level as i64)
+            .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
+        let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
+        let contour_starts = path
+            .iter()
+            .map(|&n| self.contour_at[n as usize].0)
+            .collect();
+        let cut_at = path.iter().position(|&n| n == cut_node).unwrap_or(0);
+        Ok(LocatedHandle {
+            kind: HandleKind::ReebCycle,
+            direct: false,
+            cycle,
+            volume: CycleVolume::Top,
+            cut,
+            allowed: None,
+            top_node: rn,
+            cut_node: Some(cut_node),
+            ribbon: None,
+            contour_starts,
+            cut_at,
+            bbox,
+        })
+    }
+
+    /// The contours of plane s + 1, each a new node joined to the ribbon below it. Returns
+    /// them, their nodes, and how many each ribbon has.
+    fn add_top_contours(
+        &mut self,
+        cur: &SliceSurfels,
+        ribbon_node: &[u32],
+        s: i64,
+    ) -> (contours::PlaneContours, Vec<u32>, Vec<u32>) {
+        let table = cases(self.conn);
+        let top = contours::label(cur, 5, table, &mut self.uf);
         let base = self.graph.nodes.len() as u32;
         self.checkpoints
             .last_mut()
-            .expect("pushed above")
+            .expect("pushed by step")
             .contour_base = base;
         let contour_node: Vec<u32> = (0..top.count())
             .map(|c| self.add_node(NodeKind::Contour, s as i32 + 1, c as u32))
@@ -444,43 +510,51 @@ impl Sweeper {
                 let node = contour_node[c as usize];
                 self.graph.add_edge(node, ribbon_node[r]);
                 // The segment's first end lies in plane s + 1 (face 5 of the cube).
-                let mut v = contour_vertex(&cur, &cur.top, k, slot, 5, table);
+                let mut v = contour_vertex(cur, &cur.top, k, slot, 5, table);
                 v.p[2] = s + 1;
                 self.contour_at[node as usize] = (v, top.length[c as usize]);
                 top_count[r] += 1;
             }
         }
-        // Handles inside ribbons: genus of the ribbon with its contours capped.
-        for r in 0..cur.ribbons.len() {
-            let b = bottom_of[r].len() as i64 + top_count[r] as i64;
-            let twice_genus4 = 8 - cur.ribbons[r].chi4 as i64 - 4 * b;
-            if twice_genus4 % 8 != 0 || twice_genus4 < 0 {
-                return Err(Error::Internal(format!("slice {s} ribbon {r}: capped Euler characteristic is not that of a closed surface")));
-            }
-            let g = (twice_genus4 / 8) as usize;
-            if g == 0 {
-                continue;
-            }
-            if self.depth == 0 {
-                for mut h in intra_ribbon(vol, &cur, r, s, conn, g)? {
-                    h.top_node = ribbon_node[r];
-                    h.ribbon = Some((s, r as u32));
-                    self.handles.push((s, h));
-                }
-            } else {
-                self.unresolved.push(Unresolved {
-                    slice: s,
-                    ribbon: r as u32,
-                    genus: g,
-                    node: ribbon_node[r],
-                });
-            }
+        (top, contour_node, top_count)
+    }
+
+    /// Handles inside ribbon `r` (with `b` contours): the genus of the ribbon with its contours
+    /// capped. At depth 0 they are located now; deeper, left for the caller.
+    fn ribbon_handles(
+        &mut self,
+        vol: &MaskVolume,
+        cur: &SliceSurfels,
+        r: usize,
+        b: i64,
+        node: u32,
+        s: i64,
+    ) -> Result<()> {
+        let twice_genus4 = 8 - cur.ribbons[r].chi4 as i64 - 4 * b;
+        if twice_genus4 % 8 != 0 || twice_genus4 < 0 {
+            return Err(Error::Internal(format!(
+                "slice {s} ribbon {r}: capped Euler characteristic is not that of a closed surface"
+            )));
         }
-        self.prev_contours = top;
-        self.prev_contour_node = contour_node;
-        self.next = s + 1;
-        self.last_surfels = Some((s, cur));
-        Ok(self.handles.len() - found_before)
+        let g = (twice_genus4 / 8) as usize;
+        if g == 0 {
+            return Ok(());
+        }
+        if self.depth == 0 {
+            for mut h in intra_ribbon(vol, cur, r, s, self.conn, g)? {
+                h.top_node = node;
+                h.ribbon = Some((s, r as u32));
+                self.handles.push((s, h));
+            }
+        } else {
+            self.unresolved.push(Unresolved {
+                slice: s,
+                ribbon: r as u32,
+                genus: g,
+                node,
+            });
+        }
+        Ok(())
     }
 
     /// The surfels of the slice the last step processed (once).
@@ -582,31 +656,12 @@ fn intra_ribbon(
     conn: Connectivity,
     g: usize,
 ) -> Result<Vec<LocatedHandle>> {
-    let table = cases(conn);
     let rb = &cur.ribbons[r];
     // Cube i spans samples i-1 and i (padded indices).
     let u = (rb.min[0] as i64 - 1, rb.max[0] as i64);
     let v = (rb.min[1] as i64 - 1, rb.max[1] as i64);
     let mut mini = mini::build(vol, s, u, v, conn);
-    // Probe: a piece of this ribbon, in mini coordinates (u', v', w') = (v, w, u).
-    let cube = cur.cubes[rb.first_cube as usize];
-    let case = &table[cube.case as usize];
-    let k = (0..case.n_pieces as usize)
-        .find(|&k| cur.piece_ribbon[cube.first_piece as usize + k] as usize == r)
-        .ok_or_else(|| Error::Internal("ribbon's first cube has no piece of it".into()))?;
-    let corner = case.pieces[k].corners.trailing_zeros() as u8;
-    let local = [
-        cube.i as i64 - 1 - mini.origin[0],
-        cube.j as i64 - 1 - mini.origin[1],
-        s - mini.origin[2],
-    ];
-    let c = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-    let probe = Probe {
-        u: local[1],
-        v: local[2],
-        w: local[0],
-        corner: c[1] | (c[2] << 1) | (c[0] << 2),
-    };
+    let probe = ribbon_probe(cur, r, s, mini.origin, conn)?;
     let level = sweep_level(
         &mut mini.volume,
         conn,
@@ -635,61 +690,10 @@ fn intra_ribbon(
         h.bbox = clip(&h.bbox, &shared, allowed);
         found.push(h);
     }
-    let mut graph = Graph::new(&shared, table);
+    let mut graph = Graph::new(&shared, cases(conn));
     for un in level.unresolved.iter().filter(|x| on_target(x.node)) {
-        // The ribbon's pieces and crossing points, from its slice's surfels.
-        let sl = SliceSurfels::build(
-            shared.plane(un.slice),
-            shared.plane(un.slice + 1),
-            un.slice as i32,
-            conn,
-        );
-        let mut verts = Vec::new();
-        let mut region = PieceSet::default();
-        for cube in &sl.cubes {
-            let case = &table[cube.case as usize];
-            let q = [cube.i as i64 - 1, cube.j as i64 - 1, un.slice];
-            for k in 0..case.n_pieces as usize {
-                if sl.piece_ribbon[cube.first_piece as usize + k] != un.ribbon {
-                    continue;
-                }
-                region.insert(q, k as u8);
-                for lp in &case.pieces[k].loops {
-                    verts.extend(lp.iter().map(|&e| vertex_of(q, e)));
-                }
-            }
-        }
-        verts.sort();
-        verts.dedup();
-        let pairs = local::handles(&mut graph, &verts, &region, un.genus).ok_or_else(|| {
-            Error::Internal(format!(
-                "slice {s}: no handle loops found directly in a mini-volume ribbon of genus {}",
-                un.genus
-            ))
-        })?;
-        for (_, l2) in pairs {
-            let mut bbox = BBox::EMPTY;
-            for x in &l2 {
-                bbox.include(shared.frame.to_original_i(x.p));
-            }
-            found.push(LocatedHandle {
-                kind: HandleKind::IntraRibbon,
-                direct: true,
-                cycle: vec![Node {
-                    kind: NodeKind::Ribbon,
-                    level: un.slice as i32,
-                    local: un.ribbon,
-                }],
-                volume: CycleVolume::Mini(shared.clone()),
-                cut: l2,
-                allowed: Some(allowed),
-                top_node: 0,
-                cut_node: None,
-                ribbon: None,
-                contour_starts: Vec::new(),
-                cut_at: 0,
-                bbox: clip(&bbox, &shared, allowed),
-            });
+        for cut in direct_loops(&mut graph, &shared, un, conn, s)? {
+            found.push(direct_handle(&shared, un, cut, allowed));
         }
     }
     if found.len() != g {
@@ -699,6 +703,110 @@ fn intra_ribbon(
         )));
     }
     Ok(found)
+}
+
+/// A piece of ribbon `r` of slice `s`, in the coordinates of a mini-volume at `origin`:
+/// (u', v', w') = (v, w, u).
+fn ribbon_probe(
+    cur: &SliceSurfels,
+    r: usize,
+    s: i64,
+    origin: [i64; 3],
+    conn: Connectivity,
+) -> Result<Probe> {
+    let rb = &cur.ribbons[r];
+    let cube = cur.cubes[rb.first_cube as usize];
+    let case = &cases(conn)[cube.case as usize];
+    let k = (0..case.n_pieces as usize)
+        .find(|&k| cur.piece_ribbon[cube.first_piece as usize + k] as usize == r)
+        .ok_or_else(|| Error::Internal("ribbon's first cube has no piece of it".into()))?;
+    let corner = case.pieces[k].corners.trailing_zeros() as u8;
+    let local = [
+        cube.i as i64 - 1 - origin[0],
+        cube.j as i64 - 1 - origin[1],
+        s - origin[2],
+    ];
+    let c = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+    Ok(Probe {
+        u: local[1],
+        v: local[2],
+        w: local[0],
+        corner: c[1] | (c[2] << 1) | (c[0] << 2),
+    })
+}
+
+/// The handles of a ribbon the mini-volume's own sweep left unresolved, found directly on the
+/// ribbon's pieces: one loop of each handle's pair (found in slice `s` of the volume).
+fn direct_loops(
+    graph: &mut Graph,
+    shared: &MaskVolume,
+    un: &Unresolved,
+    conn: Connectivity,
+    s: i64,
+) -> Result<Vec<Vec<Vertex>>> {
+    let table = cases(conn);
+    // The ribbon's pieces and crossing points, from its slice's surfels.
+    let sl = SliceSurfels::build(
+        shared.plane(un.slice),
+        shared.plane(un.slice + 1),
+        un.slice as i32,
+        conn,
+    );
+    let mut verts = Vec::new();
+    let mut region = PieceSet::default();
+    for cube in &sl.cubes {
+        let case = &table[cube.case as usize];
+        let q = [cube.i as i64 - 1, cube.j as i64 - 1, un.slice];
+        for k in 0..case.n_pieces as usize {
+            if sl.piece_ribbon[cube.first_piece as usize + k] != un.ribbon {
+                continue;
+            }
+            region.insert(q, k as u8);
+            for lp in &case.pieces[k].loops {
+                verts.extend(lp.iter().map(|&e| vertex_of(q, e)));
+            }
+        }
+    }
+    verts.sort();
+    verts.dedup();
+    let pairs = local::handles(graph, &verts, &region, un.genus).ok_or_else(|| {
+        Error::Internal(format!(
+            "slice {s}: no handle loops found directly in a mini-volume ribbon of genus {}",
+            un.genus
+        ))
+    })?;
+    Ok(pairs.into_iter().map(|(_, l2)| l2).collect())
+}
+
+/// The handle of a loop [`direct_loops`] found.
+fn direct_handle(
+    shared: &Arc<MaskVolume>,
+    un: &Unresolved,
+    cut: Vec<Vertex>,
+    allowed: ([i64; 3], [i64; 3]),
+) -> LocatedHandle {
+    let mut bbox = BBox::EMPTY;
+    for x in &cut {
+        bbox.include(shared.frame.to_original_i(x.p));
+    }
+    LocatedHandle {
+        kind: HandleKind::IntraRibbon,
+        direct: true,
+        cycle: vec![Node {
+            kind: NodeKind::Ribbon,
+            level: un.slice as i32,
+            local: un.ribbon,
+        }],
+        volume: CycleVolume::Mini(shared.clone()),
+        cut,
+        allowed: Some(allowed),
+        top_node: 0,
+        cut_node: None,
+        ribbon: None,
+        contour_starts: Vec::new(),
+        cut_at: 0,
+        bbox: clip(&bbox, shared, allowed),
+    }
 }
 
 /// Clips an original-coordinate box to the original-geometry part of a mini-volume.
