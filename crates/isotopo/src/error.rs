@@ -30,6 +30,8 @@ pub enum Error {
     Usage(String),
     /// A bug: an internal invariant failed. Reported rather than panicking.
     Internal(String),
+    /// The caller asked to stop ([`crate::progress::Progress::cancelled`]); nothing was written.
+    Cancelled,
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -88,6 +90,7 @@ impl fmt::Display for Error {
             ),
             Error::Usage(msg) => write!(f, "{msg}"),
             Error::Internal(msg) => write!(f, "internal error (please report): {msg}"),
+            Error::Cancelled => write!(f, "cancelled"),
         }
     }
 }

@@ -1,6 +1,8 @@
 //! Progress reporting, decoupled from any terminal: the library reports stages and steps, the
 //! command line draws bars (or nothing, under `--quiet` or when stderr is not a terminal).
 
+use crate::error::{Error, Result};
+
 /// Receives progress from long operations. All methods take `&self` so one reporter can be shared.
 pub trait Progress: Sync {
     /// A new stage begins with `total` steps (slices, handles…).
@@ -14,6 +16,19 @@ pub trait Progress: Sync {
     /// A line for whoever debugs a run (what was measured, how a pass ended); the command line
     /// prints these when `ISOTOPO_DEBUG` is set. Ignored by default.
     fn trace(&self, _line: std::fmt::Arguments<'_>) {}
+    /// Whether the caller asked to stop (a Ctrl-C in Python, a cancel button). Long operations
+    /// ask between steps (a slice, a handle, a plane written) and return [`Error::Cancelled`];
+    /// nothing is written. By default, never.
+    fn cancelled(&self) -> bool {
+        false
+    }
+    /// `Err(Error::Cancelled)` once [`Progress::cancelled`] says so.
+    fn check(&self) -> Result<()> {
+        match self.cancelled() {
+            true => Err(Error::Cancelled),
+            false => Ok(()),
+        }
+    }
 }
 
 /// Reports nothing.

@@ -181,3 +181,95 @@ fn options_no_simplification_can_follow_are_refused() {
         assert!(r.is_err(), "{opts:?}");
     }
 }
+
+/// Asks to stop once `after` steps are done.
+struct StopAfter {
+    after: u64,
+    done: std::sync::atomic::AtomicU64,
+}
+
+impl StopAfter {
+    fn new(after: u64) -> StopAfter {
+        StopAfter {
+            after,
+            done: 0.into(),
+        }
+    }
+}
+
+impl isotopo::progress::Progress for StopAfter {
+    fn start(&self, _stage: &str, _total: u64) {}
+    fn advance(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn cancelled(&self) -> bool {
+        self.done.load(std::sync::atomic::Ordering::Relaxed) >= self.after
+    }
+}
+
+fn is_cancelled<T>(r: isotopo::Result<T>) -> bool {
+    matches!(r, Err(isotopo::Error::Cancelled))
+}
+
+/// Every job stops with `Error::Cancelled` when the caller asks, at any point: while reading,
+/// sweeping, measuring, simplifying or writing (nothing is written then); and runs to the end
+/// when the caller never asks.
+#[test]
+fn a_caller_can_cancel_every_job() {
+    let (vol, iso) = noise(7);
+    let surface = SurfaceOptions {
+        iso,
+        ..SurfaceOptions::default()
+    };
+    let analyze = isotopo::AnalyzeOptions {
+        surface,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    let simplify = SimplifyOptions {
+        surface,
+        tau: f64::INFINITY,
+        ..SimplifyOptions::default()
+    };
+    let src = || Source::from(vol.clone());
+    let nz = vol.dims()[2] as u64;
+    // genus: a step per slice. The others: planes read (nz), then slices swept (nz + 1), then
+    // handles measured.
+    for after in [0, 1, nz / 2] {
+        let stop = StopAfter::new(after);
+        assert!(
+            is_cancelled(isotopo::genus(src(), &surface, &stop)),
+            "genus, {after}"
+        );
+    }
+    for after in [0, 1, nz / 2, nz + 3, 2 * nz + 2, 2 * nz + 4] {
+        let stop = StopAfter::new(after);
+        assert!(
+            is_cancelled(isotopo::analyze(src(), &analyze, &stop)),
+            "analyze, {after}"
+        );
+        let stop = StopAfter::new(after);
+        assert!(
+            is_cancelled(isotopo::simplify(src(), &simplify, &stop)),
+            "simplify, {after}"
+        );
+    }
+    let never = StopAfter::new(u64::MAX);
+    isotopo::genus(src(), &surface, &never).unwrap();
+    isotopo::analyze(src(), &analyze, &never).unwrap();
+    let mut done = isotopo::simplify(src(), &simplify, &never).unwrap();
+    assert!(!done.outcome.removed.is_empty());
+
+    let dir = std::env::temp_dir().join(format!("isotopo-cancel-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let output = dir.join("out.nii.gz");
+    assert!(is_cancelled(done.write(&output, &StopAfter::new(nz / 2))));
+    assert!(!output.exists(), "a cancelled write left a file");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        0,
+        "a temp file was left"
+    );
+    done.write(&output, &never).unwrap();
+    assert!(output.exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -323,6 +323,7 @@ impl MaskVolume {
                 }
             }
             progress.advance(1);
+            progress.check()?;
         }
         progress.finish();
         vol.fractions = fractions;

@@ -951,23 +951,27 @@ pub fn measure_all(
     for ids in order.chunks(batch) {
         vol.follow_sweep(top_slice(&handles[ids[0]]))?;
         let frozen: &MaskVolume = vol;
-        let measured: Vec<HandleLoops> = ids
+        let measured: Vec<Option<HandleLoops>> = ids
             .par_iter()
             .map_init(
                 || (Graph::new(frozen, table), SliceCache::new(conn)),
                 |(g, cache), &i| {
+                    if progress.cancelled() {
+                        return None;
+                    }
                     // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
                     if g.len() > MEASURE_GRAPH_LIMIT {
                         g.clear();
                     }
                     let l = measure(g, cache, &handles[i], conn, affine, limits);
                     progress.advance(1);
-                    l
+                    Some(l)
                 },
             )
             .collect();
+        progress.check()?;
         for (&i, l) in ids.iter().zip(measured) {
-            out[i] = Some(l);
+            out[i] = l;
         }
     }
     progress.finish();

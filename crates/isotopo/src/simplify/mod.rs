@@ -369,6 +369,7 @@ impl<'a> Run<'a> {
                 progress.message(&format!("{} removed", self.removed.len()));
                 high = s;
             }
+            progress.check()?;
             if new.is_empty() {
                 continue;
             }

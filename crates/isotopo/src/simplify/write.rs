@@ -121,6 +121,7 @@ pub fn write_edited(
         }
         writer.write_slice(&slice)?;
         progress.advance(1);
+        progress.check()?;
     }
     progress.finish();
     let info = reader.info().clone();

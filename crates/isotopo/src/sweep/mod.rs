@@ -638,6 +638,7 @@ fn sweep_level(
         if depth == 0 {
             progress.advance(1);
             progress.message(&format!("{} handles", sweeper.handles.len()));
+            progress.check()?;
         }
     }
     if depth == 0 {

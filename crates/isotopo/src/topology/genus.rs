@@ -453,6 +453,7 @@ pub fn genus(
             let base = tracker.add_slice(&s, &areas, prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
             prev = Some((s, base));
             progress.advance(1);
+            progress.check()?;
         }
         lower_plane = planes.pop().unwrap_or_else(|| PlaneMask::empty(nx, ny));
         lower_values = values.pop().flatten();
