@@ -16,14 +16,20 @@ use std::path::{Path, PathBuf};
 pub enum Error {
     /// A file's content is not what it should be (bad header, truncated data, unsupported type…).
     Input {
+        /// The file.
         path: PathBuf,
+        /// What was found.
         found: String,
+        /// What was expected instead.
         expected: String,
     },
     /// The operating system refused an operation on a file.
     Io {
+        /// The file.
         path: PathBuf,
+        /// What was being done ("reading", "creating"…).
         action: &'static str,
+        /// The operating system's error.
         source: io::Error,
     },
     /// The options do not make sense together (missing `--raw-dims`, output equal to input…).
@@ -34,6 +40,7 @@ pub enum Error {
     Cancelled,
 }
 
+/// The library's result: [`Error`] by default.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
@@ -59,6 +66,7 @@ impl Error {
         }
     }
 
+    /// Options that do not make sense together, with what to do instead.
     pub fn usage(msg: impl Into<String>) -> Self {
         Error::Usage(msg.into())
     }

@@ -59,7 +59,7 @@
 // Index loops read better than iterator chains in the matrix and grid code here.
 #![allow(clippy::needless_range_loop)]
 
-pub mod closure;
+pub(crate) mod closure;
 pub mod error;
 pub mod grid;
 pub mod jobs;
@@ -72,7 +72,7 @@ pub mod simplify;
 pub mod surface;
 pub mod sweep;
 pub mod topology;
-pub mod unionfind;
+pub(crate) mod unionfind;
 pub mod volume;
 
 pub use error::{Error, Result};

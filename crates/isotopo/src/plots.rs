@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 pub struct PlotPoint {
     /// Loop lengths in voxel edges (`None`: not found within the search limit).
     pub reeb: Option<usize>,
+    /// The cross loop's length, likewise.
     pub cross: Option<usize>,
     /// Whether the handle's smaller loop encloses void (hollow marker, as in the paper).
     pub void: bool,

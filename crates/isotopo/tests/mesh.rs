@@ -80,7 +80,7 @@ fn check_mesh(m: &Mesh) -> Result<Check, String> {
         ));
     }
     // Components by union-find over triangles' vertices.
-    let mut uf = isotopo::unionfind::UnionFind::new(m.vertices.len());
+    let mut uf = common::UnionFind::new(m.vertices.len());
     for t in &m.triangles {
         uf.union(t[0], t[1]);
         uf.union(t[1], t[2]);

@@ -415,7 +415,7 @@ fn tau_keeps_the_large_handle_and_removes_the_small_one() {
         assert!(out
             .removed
             .iter()
-            .all(|r| r.operation == isotopo::closure::Operation::Pinch));
+            .all(|r| r.operation == isotopo::simplify::Operation::Pinch));
         // Fill only: the bar's handles can only be removed by filling round them.
         let fill = expect_ok(check(
             "torus with a bar",

@@ -24,7 +24,7 @@
 
 mod peel;
 
-pub use peel::{peel_walls, topological_numbers, PeelTarget};
+pub use peel::{peel_walls, PeelTarget};
 
 use crate::grid::MaskVolume;
 use crate::surface::geometry::centroid;
@@ -131,12 +131,6 @@ pub fn point_triangle_dist2(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) 
     dot(d, d)
 }
 
-/// Samples (volume-local coordinates) within `d` of the fan spanning the closed polyline
-/// `points` about its centroid, sorted.
-pub fn wall(points: &[[f64; 3]], d: f64) -> Vec<[i64; 3]> {
-    NearFan::new(points, d).within(d)
-}
-
 /// The samples near a loop's spanning fan with their distances to it, computed once for the
 /// several walls (of growing thickness) tried across one loop.
 pub struct NearFan {
@@ -190,7 +184,7 @@ impl NearFan {
 /// A closure that was kept.
 #[derive(Clone, Debug)]
 pub struct Applied {
-    pub op: Operation,
+    pub(crate) op: Operation,
     /// Samples whose state was flipped (volume-local coordinates).
     pub changed: Vec<[i64; 3]>,
     /// Handles it removed (usually 1; a wall across two tiny neighbouring handles removes both).
@@ -371,7 +365,7 @@ pub struct Attempt<'a> {
     /// The loop, and a loop crossing it once (empty if none is known).
     pub lp: &'a [Vertex],
     pub partner: &'a [Vertex],
-    pub op: Operation,
+    pub(crate) op: Operation,
     /// The samples to set to `op`'s side: [`wall`] across the loop's fan, single samples, or a
     /// peeled wall.
     pub wall: Vec<[i64; 3]>,
@@ -498,15 +492,6 @@ impl Refusal {
             Refusal::FallsApart => "falls_apart",
         }
     }
-
-    /// Every refusal, in the order of the checks.
-    pub const ALL: [Refusal; 5] = [
-        Refusal::NothingToChange,
-        Refusal::OffTheSurface,
-        Refusal::EulerCharacteristic,
-        Refusal::OtherSurface,
-        Refusal::FallsApart,
-    ];
 }
 
 #[cfg(test)]
@@ -543,7 +528,7 @@ mod tests {
             }
         }
         for d in [0.5, 3f64.sqrt() / 2.0] {
-            let w = wall(&ordered, d);
+            let w = NearFan::new(&ordered, d).within(d);
             assert!(w.iter().all(|q| q[2] == 5), "{d}: {w:?}");
             assert!(w.contains(&[3, 3, 5]));
         }

@@ -26,6 +26,7 @@ pub struct EdgeFractions {
 }
 
 impl EdgeFractions {
+    /// No fractions yet, for a volume of `dims` samples.
     pub fn new(dims: [usize; 3]) -> EdgeFractions {
         EdgeFractions {
             nx: dims[0],
@@ -116,6 +117,7 @@ impl EdgeFractions {
         self.planes.iter().map(|p| p.0.len()).sum()
     }
 
+    /// Whether no fraction was recorded.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

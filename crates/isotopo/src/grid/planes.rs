@@ -24,12 +24,16 @@ use std::sync::OnceLock;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Axis {
+    /// Slices are planes of constant x.
     X,
+    /// Slices are planes of constant y.
     Y,
+    /// Slices are planes of constant z (the default: the order samples are stored in).
     Z,
 }
 
 impl Axis {
+    /// "x", "y" or "z".
     pub fn name(self) -> &'static str {
         match self {
             Axis::X => "x",
@@ -52,11 +56,13 @@ impl Axis {
 /// `original[uvw[k]] = offset[uvw[k]] + local[k]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Frame {
-    pub uvw: [usize; 3],
+    pub(crate) uvw: [usize; 3],
+    /// Added to original coordinates after the permutation (the padding).
     pub offset: [i64; 3],
 }
 
 impl Frame {
+    /// Local coordinates are original ones (sweep along z, no offset).
     pub fn identity() -> Frame {
         Frame {
             uvw: [0, 1, 2],
@@ -64,7 +70,7 @@ impl Frame {
         }
     }
 
-    pub fn for_axis(axis: Axis) -> Frame {
+    pub(crate) fn for_axis(axis: Axis) -> Frame {
         Frame {
             uvw: axis.uvw(),
             offset: [0; 3],
@@ -81,6 +87,7 @@ impl Frame {
         o
     }
 
+    /// Local integer coordinates to original ones.
     #[inline]
     pub fn to_original_i(&self, p: [i64; 3]) -> [i64; 3] {
         let mut o = [0; 3];
@@ -389,11 +396,13 @@ impl MaskVolume {
     }
 
     #[inline]
+    /// Whether the sample at local (u, v, w) is inside; outside the volume (the padding), false.
     pub fn get(&self, u: i64, v: i64, w: i64) -> bool {
         self.plane(w).get(u as isize, v as isize)
     }
 
     #[inline]
+    /// Sets the sample at local (u, v, w) inside or outside.
     pub fn set(&mut self, u: usize, v: usize, w: usize, inside: bool) {
         self.plane(w as i64);
         self.dirty[w] = self.store.is_some();

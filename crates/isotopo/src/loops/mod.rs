@@ -49,6 +49,7 @@ pub struct Loop {
     /// Length in millimetres of the polyline through the vertices' positions (interpolated on
     /// their edges when the volume was read with its fractions, else the edges' midpoints).
     pub length_mm: f64,
+    /// What its spanning disk passes through: which closure it calls for.
     pub encloses: Encloses,
 }
 
@@ -65,7 +66,9 @@ impl Loop {
 /// A handle's two loops. Either may be missing when its search stopped at a limit.
 #[derive(Clone, Debug, Default)]
 pub struct HandleLoops {
+    /// The Reeb loop: round the handle's cycle (`None`: none within the search limit).
     pub reeb: Option<Loop>,
+    /// The cross loop: across the handle, crossing the Reeb loop once.
     pub cross: Option<Loop>,
     /// Each loop found is the shortest of its kind, and each missing one has none shorter than
     /// the limit (false when a search ran out of its budget of states first).
@@ -153,6 +156,7 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// No limit, shortest in edges, both loops exact.
     pub const NONE: Limits = Limits {
         below: f64::INFINITY,
         metric: Metric::Edges,
@@ -170,7 +174,9 @@ impl Limits {
 
 /// The searches of one metric on one volume's surface graph.
 pub struct Searcher<'g> {
+    /// The metric loops are shortest in.
     pub metric: Metric,
+    /// Where the surface graph's vertices lie (for millimetres).
     pub geometry: Geometry<'g>,
 }
 
@@ -260,6 +266,7 @@ fn slice_bytes(s: &SliceSurfels) -> usize {
 }
 
 impl SliceCache {
+    /// An empty cache for surfaces of connectivity `conn`.
     pub fn new(conn: Connectivity) -> SliceCache {
         SliceCache {
             conn,

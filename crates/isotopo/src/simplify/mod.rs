@@ -19,7 +19,7 @@
 //! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
 //! is checked again on the whole volume at the end.
 
-use crate::closure::Operation;
+pub use crate::closure::Operation;
 use crate::error::{Error, Result};
 use crate::grid::{Axis, MaskVolume};
 use crate::loops::{HandleLoops, Limits, Loop, Metric};
@@ -142,7 +142,9 @@ impl SimplifyOptions {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LoopKind {
+    /// The Reeb loop, round the handle's cycle.
     Reeb,
+    /// The cross loop, across the handle.
     Cross,
 }
 
@@ -151,16 +153,22 @@ pub enum LoopKind {
 pub struct Removed {
     /// The handle's size: its shorter loop (voxel edges, and millimetres).
     pub size: usize,
+    /// The size in millimetres.
     pub size_mm: f64,
+    /// The Reeb loop's length in edges (`None`: not found within the search limit).
     pub reeb: Option<usize>,
+    /// The cross loop's length in edges, likewise.
     pub cross: Option<usize>,
+    /// Closed by a Reeb cycle of the sweep or inside a ribbon.
     pub kind: HandleKind,
     /// The loop that was closed, and how.
     #[serde(rename = "loop")]
     pub closed: LoopKind,
+    /// Fill (collapse a loop round void) or cut (pinch a loop round material).
     pub operation: Operation,
     /// Length of the closed loop (voxel edges and mm).
     pub length: usize,
+    /// The closed loop's length in millimetres.
     pub length_mm: f64,
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
     /// `peeled_box` or `peeled_along` wall, the margin of the box it lies in).
@@ -173,17 +181,21 @@ pub struct Removed {
     pub wall: &'static str,
     /// Samples this closure flipped: how many, and which (original coordinates).
     pub samples_changed: usize,
+    /// The samples flipped.
     pub samples: Vec<[i64; 3]>,
     /// Handles the wall removed: 1, or more when it also closed tiny handles right beside.
     pub handles: usize,
     /// Farthest flipped sample from the loop's polyline (voxels, and mm).
     pub max_distance: f64,
+    /// The same in millimetres.
     pub max_distance_mm: f64,
     /// The closed loop: polyline through edge midpoints, original voxel coordinates.
     pub points: Vec<[f64; 3]>,
+    /// The box of the handle's loops (original voxel coordinates).
     pub bbox: BBox,
     /// Pass of the sweep (1-based) and slice at which it was closed.
     pub pass: usize,
+    /// The sweep's slice, in the swept frame.
     pub slice: i64,
 }
 
@@ -210,11 +222,17 @@ pub enum KeepReason {
 pub struct Kept {
     /// The shorter loop's length in edges, and in millimetres.
     pub size: Option<usize>,
+    /// The size in millimetres.
     pub size_mm: Option<f64>,
+    /// The Reeb loop's length in edges (`None`: not found within the search limit).
     pub reeb: Option<usize>,
+    /// The cross loop's length in edges, likewise.
     pub cross: Option<usize>,
+    /// Closed by a Reeb cycle of the sweep or inside a ribbon.
     pub kind: HandleKind,
+    /// Why it was kept.
     pub reason: KeepReason,
+    /// The box of its loops (original voxel coordinates).
     pub bbox: BBox,
 }
 
@@ -224,6 +242,7 @@ pub type Edit = ([i64; 3], bool);
 /// What simplification did.
 #[derive(Clone, Debug)]
 pub struct Outcome {
+    /// The handles removed, in the order they were closed.
     pub removed: Vec<Removed>,
     /// The handles of the result (the last pass's analysis).
     pub kept: Vec<Kept>,
@@ -242,6 +261,8 @@ pub struct Outcome {
     pub rewinds: usize,
     /// Closures tried and refused by the local check, and why.
     pub refused: usize,
+    /// The refusals by reason (`nothing_to_change`, `off_the_surface`, `euler_characteristic`,
+    /// `other_surface`, `falls_apart`).
     pub refused_by: std::collections::BTreeMap<&'static str, usize>,
     /// Seconds spent stepping the sweep, measuring loops and closing them.
     pub seconds: StageSeconds,
@@ -250,8 +271,11 @@ pub struct Outcome {
 /// Where the time went.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageSeconds {
+    /// Stepping the sweep.
     pub sweep: f64,
+    /// Measuring loops.
     pub loops: f64,
+    /// Trying walls.
     pub closures: f64,
 }
 

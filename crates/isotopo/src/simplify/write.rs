@@ -33,11 +33,14 @@ pub(super) fn final_edits(vol: &mut MaskVolume, original: FastMap<[i64; 3], bool
 /// surface from sitting exactly on the samples).
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct WallValues {
+    /// Written for samples set inside (`None`: no such value in the type).
     pub inside: Option<f64>,
+    /// Written for samples set outside.
     pub outside: Option<f64>,
 }
 
 impl WallValues {
+    /// The values for samples of type `dtype` classified by `classifier`.
     pub fn new(dtype: DType, classifier: &Classifier) -> WallValues {
         let s = classifier.scaling;
         // The isovalue in stored units.

@@ -9,8 +9,9 @@ use crate::volume::Affine;
 /// the fractions are known, else at the edges' midpoints.
 #[derive(Clone, Copy)]
 pub struct Geometry<'a> {
+    /// Voxel to millimetre coordinates.
     pub affine: &'a Affine,
-    pub fractions: Option<&'a EdgeFractions>,
+    pub(crate) fractions: Option<&'a EdgeFractions>,
 }
 
 impl Geometry<'_> {

@@ -28,7 +28,9 @@ use crate::topology::cases::{Case, EDGE_CORNERS};
 /// `n` are the padding).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Vertex {
+    /// The edge's lower end.
     pub p: [i64; 3],
+    /// The edge's direction: 0, 1 or 2 for x, y, z.
     pub axis: u8,
 }
 
@@ -71,8 +73,11 @@ impl Vertex {
 /// so that they are the faces of the graph between the tube's diagonals.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PieceRef {
+    /// The cube's lower corner.
     pub cube: [i64; 3],
+    /// The piece's index in the cube's case.
     pub index: u8,
+    /// For a tube, 1 + the triangle's index; 0 for any other piece.
     pub part: u8,
 }
 
@@ -131,6 +136,7 @@ impl Around {
         Some(d * 3 + w.axis)
     }
 
+    /// The vertices joined to this one, in order round it.
     pub fn neighbours(&self) -> Vec<Vertex> {
         (0..self.n).map(|k| self.nbr(k)).collect()
     }
@@ -162,6 +168,7 @@ impl Around {
         (self.diagonal >> k) & 1 == 1
     }
 
+    /// Where `w` lies among the neighbours.
     pub fn position(&self, w: Vertex) -> Option<usize> {
         let c = Around::code(self.center, w)?;
         self.nbr[..self.n].iter().position(|&x| x == c)

@@ -27,6 +27,7 @@ pub struct PlaneContours {
 }
 
 impl PlaneContours {
+    /// How many contours the plane has.
     pub fn count(&self) -> usize {
         self.length.len()
     }

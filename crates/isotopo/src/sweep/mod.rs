@@ -18,12 +18,13 @@
 //! once — the shortest contour of its cycle, or for a handle found directly, the loop crossing
 //! its non-separating loop.
 
-pub mod contours;
-pub mod local;
-pub mod mini;
-pub mod reeb;
+pub(crate) mod contours;
+pub(crate) mod local;
+pub(crate) mod mini;
+mod reeb;
 
-pub use reeb::{Node, NodeKind, ReebGraph};
+pub(crate) use reeb::ReebGraph;
+pub use reeb::{Node, NodeKind};
 
 use crate::error::{Error, Result};
 use crate::grid::{Axis, Frame, MaskVolume};
@@ -59,6 +60,7 @@ pub enum CycleVolume {
 /// A handle located by the sweep.
 #[derive(Clone, Debug)]
 pub struct LocatedHandle {
+    /// Closed by a Reeb cycle or inside a ribbon.
     pub kind: HandleKind,
     /// For intra-ribbon handles: found by the mini-volume's sweep (a cycle), or directly.
     pub direct: bool,
@@ -70,6 +72,7 @@ pub struct LocatedHandle {
     pub contour_starts: Vec<Vertex>,
     /// Position in `cycle` of the contour cut for this handle (Reeb-cycle handles).
     pub cut_at: usize,
+    /// The volume `cycle`, `cut` and `contour_starts` are in.
     pub volume: CycleVolume,
     /// The closed curve its Reeb loop crosses once (vertices in order, in `volume`'s
     /// coordinates).
@@ -225,6 +228,7 @@ pub struct Sweeper {
 }
 
 impl Sweeper {
+    /// A sweep of a surface of connectivity `conn`, before its first slice.
     pub fn new(conn: Connectivity) -> Sweeper {
         Sweeper::at_depth(conn, 0, None)
     }
@@ -836,15 +840,21 @@ pub struct SweepSurface {
 /// A located handle with its surface resolved.
 #[derive(Clone, Debug)]
 pub struct Handle {
+    /// Number in the report, from 0.
     pub id: usize,
+    /// The id of the surface it is on.
     pub surface: usize,
+    /// Where the sweep found it.
     pub located: LocatedHandle,
 }
 
 /// Every handle of a volume's isosurface.
 pub struct HandleReport {
+    /// The sweep's axis.
     pub axis: Axis,
+    /// Every handle, by id.
     pub handles: Vec<Handle>,
+    /// Every closed surface, by id.
     pub surfaces: Vec<SweepSurface>,
     /// Total genus from the Euler characteristic.
     pub genus: i64,

@@ -19,8 +19,11 @@ pub enum NodeKind {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A node of the Reeb graph: a contour of a plane or a ribbon of a slice.
 pub struct Node {
+    /// Contour or ribbon.
     pub kind: NodeKind,
+    /// The contour's plane, or the ribbon's slice (its lower plane).
     pub level: i32,
     /// Index among the contours of its plane, or the ribbons of its slice.
     pub local: u32,
@@ -86,7 +89,7 @@ impl RollbackUnionFind {
 /// Contour and ribbon nodes and the edges between them.
 #[derive(Clone, Debug, Default)]
 pub struct ReebGraph {
-    pub nodes: Vec<Node>,
+    pub(crate) nodes: Vec<Node>,
     pub adj: Vec<Vec<u32>>,
     pub uf: RollbackUnionFind,
     /// Breadth-first search scratch: visit stamp and predecessor per node.
@@ -96,7 +99,7 @@ pub struct ReebGraph {
 }
 
 impl ReebGraph {
-    pub fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
+    pub(crate) fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
         let id = self.nodes.len() as u32;
         self.nodes.push(Node { kind, level, local });
         self.adj.push(Vec::new());
@@ -104,7 +107,7 @@ impl ReebGraph {
         id
     }
 
-    pub fn add_edge(&mut self, a: u32, b: u32) {
+    pub(crate) fn add_edge(&mut self, a: u32, b: u32) {
         self.adj[a as usize].push(b);
         self.adj[b as usize].push(a);
         self.uf.union(a, b);
@@ -156,12 +159,8 @@ impl ReebGraph {
         None
     }
 
-    pub fn truncate(&mut self, first: usize) {
-        self.truncate_from(first, 0);
-    }
-
-    /// As [`ReebGraph::truncate`], when only nodes from `scan_from` on can have edges to the
-    /// removed ones.
+    /// Removes the nodes from `first` on and their edges, when only nodes from `scan_from` on
+    /// can have edges to them.
     pub fn truncate_from(&mut self, first: usize, scan_from: usize) {
         self.nodes.truncate(first);
         self.adj.truncate(first);

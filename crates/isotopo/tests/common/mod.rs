@@ -107,3 +107,26 @@ pub fn mask_of(vol: &InMemoryVolume, iso: f64) -> Vec<bool> {
 }
 
 pub const BOTH: [Connectivity; 2] = [Connectivity::Six, Connectivity::TwentySix];
+
+/// Union-find with path halving: the tests' own, independent of the library's.
+pub struct UnionFind(Vec<u32>);
+
+impl UnionFind {
+    pub fn new(n: usize) -> UnionFind {
+        UnionFind((0..n as u32).collect())
+    }
+
+    pub fn find(&mut self, mut x: u32) -> u32 {
+        while self.0[x as usize] != x {
+            let up = self.0[self.0[x as usize] as usize];
+            self.0[x as usize] = up; // path halving
+            x = up;
+        }
+        x
+    }
+
+    pub fn union(&mut self, a: u32, b: u32) {
+        let (a, b) = (self.find(a), self.find(b));
+        self.0[a as usize] = b;
+    }
+}

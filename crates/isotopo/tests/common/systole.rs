@@ -61,6 +61,7 @@
 //! - (c) once v has been a source, every cycle through v is accounted for, so later searches avoid
 //!   v (the first source met on C still sees all of C).
 
+use super::UnionFind;
 use isotopo::mesh::{extract, Mesh};
 use isotopo::progress::NoProgress;
 use isotopo::topology::Connectivity;
@@ -1028,28 +1029,6 @@ fn piece_kind(
         _ => Err(format!(
             "piece {p}: Euler characteristic {chi} with {loops} boundary loops"
         )),
-    }
-}
-
-struct UnionFind(Vec<u32>);
-
-impl UnionFind {
-    fn new(n: usize) -> UnionFind {
-        UnionFind((0..n as u32).collect())
-    }
-
-    fn find(&mut self, mut x: u32) -> u32 {
-        while self.0[x as usize] != x {
-            let up = self.0[self.0[x as usize] as usize];
-            self.0[x as usize] = up; // path halving
-            x = up;
-        }
-        x
-    }
-
-    fn union(&mut self, a: u32, b: u32) {
-        let (a, b) = (self.find(a), self.find(b));
-        self.0[a as usize] = b;
     }
 }
 

@@ -59,7 +59,7 @@ impl Hasher for FastHasher {
     }
 }
 
-pub type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
+pub(crate) type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
 
 /// Packs a vertex into a u64 ([`Vertex::key`]).
 #[inline]
@@ -70,7 +70,9 @@ pub fn key(v: Vertex) -> u64 {
 /// The surface graph of one volume: each vertex's neighbourhood is computed once and numbered,
 /// and kept for later searches; the numbers index the searches' dense state arrays.
 pub struct Graph<'a> {
+    /// The volume whose isosurface this is.
     pub vol: &'a MaskVolume,
+    /// The cases of its connectivity.
     pub table: &'a [Case; 256],
     index: FastMap<u64, u32>,
     arena: Vec<Around>,
@@ -99,6 +101,7 @@ impl GraphCache {
         self.arena.len()
     }
 
+    /// Whether no vertex is numbered.
     pub fn is_empty(&self) -> bool {
         self.arena.is_empty()
     }
@@ -161,6 +164,7 @@ pub enum Reach {
 }
 
 impl<'a> Graph<'a> {
+    /// An empty graph of `vol`'s surface: neighbourhoods are computed as searches reach them.
     pub fn new(vol: &'a MaskVolume, table: &'a [Case; 256]) -> Graph<'a> {
         Graph::with_cache(vol, table, GraphCache::default())
     }
@@ -288,11 +292,13 @@ impl<'a> Graph<'a> {
     }
 
     #[inline]
+    /// The neighbourhood of vertex number `i`.
     pub fn at(&self, i: u32) -> &Around {
         &self.arena[i as usize]
     }
 
     #[inline]
+    /// The vertex numbered `i`.
     pub fn vertex(&self, i: u32) -> Vertex {
         Vertex::from_key(self.verts[i as usize])
     }
@@ -302,6 +308,7 @@ impl<'a> Graph<'a> {
         self.arena.len()
     }
 
+    /// Whether no vertex is numbered.
     pub fn is_empty(&self) -> bool {
         self.arena.is_empty()
     }
@@ -409,6 +416,7 @@ impl Iterator for Steps {
 /// Which pieces the loop may use. A segment is usable when a piece on either side of it is (so
 /// a region's boundary curves are usable), a vertex when one of its pieces is.
 pub trait Region {
+    /// Whether the loop may use piece `p`.
     fn allows(&self, p: &PieceRef) -> bool;
 }
 
@@ -422,8 +430,11 @@ impl Region for Everywhere {
 
 /// Pieces in cubes whose lower corner lies in a box (inclusive), and optionally further filtered.
 pub struct InBox<F: Fn(&PieceRef) -> bool> {
+    /// The box's lowest cube.
     pub lo: [i64; 3],
+    /// The box's highest cube.
     pub hi: [i64; 3],
+    /// Which of the pieces in the box are allowed.
     pub filter: F,
 }
 
@@ -438,6 +449,7 @@ impl<F: Fn(&PieceRef) -> bool> Region for InBox<F> {
 pub struct PieceSet(pub FastMap<([i64; 3], u8), ()>);
 
 impl PieceSet {
+    /// Allows the piece `index` of the cube at `cube`.
     pub fn insert(&mut self, cube: [i64; 3], index: u8) {
         self.0.insert((cube, index), ());
     }

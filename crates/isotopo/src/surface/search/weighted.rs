@@ -27,6 +27,7 @@ use std::collections::BinaryHeap;
 /// A loop found by [`odd_loop_mm`] and its length in millimetres.
 #[derive(Clone, Debug, Default)]
 pub struct OddLoopMm {
+    /// The loop and its length (`None`: none below the limit).
     pub found: Option<(Vec<Vertex>, f64)>,
     /// Is `found` a shortest such loop, or (`None`) is none shorter than the limit?
     pub exact: bool,
