@@ -18,7 +18,7 @@ use crate::topology::genus::SurfaceTracker;
 use crate::topology::mask::PlaneMask;
 use crate::topology::slice::SliceSurfels;
 use crate::topology::values::{crossing, SliceValues};
-use crate::topology::SurfaceOptions;
+use crate::topology::{Classifier, Connectivity, SurfaceOptions};
 use crate::volume::{
     Affine, AtomicOutput, Compression, DType, Sample, Samples, Scaling, SliceReader, VolumeInfo,
 };
@@ -330,6 +330,7 @@ fn slice_mesh(
     }
 }
 
+/// Slices per parallel batch.
 const BATCH: usize = 16;
 
 /// Extracts the isosurface as a mesh; with `largest`, only the surface of largest area.
@@ -343,100 +344,176 @@ pub fn extract(
     let [nx, ny, nz] = info.dims;
     let classifier = opts.classifier(&info);
     let flip = info.affine.determinant() < 0.0;
-    let mut mesh = Mesh::default();
-    let mut tri_ribbon: Vec<u32> = Vec::new();
-    let mut tracker = SurfaceTracker::default();
+    let mut out = MeshAssembly::new(flip, largest, opts.connectivity);
     progress.start("mesh", nz as u64 + 1);
-    let make_plane = |samples: Option<Samples>| {
-        let mut mask = PlaneMask::empty(nx, ny);
-        if let Some(s) = &samples {
-            mask.fill(s, &classifier);
-        }
-        let edges = plane_edges(&mask);
-        MeshPlane {
-            mask,
-            edges,
-            samples,
-        }
-    };
-    let mut lower = make_plane(None);
-    let mut lower_base = 0u32; // first vertex of the lower plane's x/y crossings
-    let mut prev: Option<(SliceSurfels, u32)> = None;
+    // Planes -1 ..= nz; a batch covers slices z0 .. z1 (lower planes), upper planes z0+1 ..= z1.
+    let mut lower = mesh_plane(None, nx, ny, &classifier);
     let mut z0: i32 = -1;
     while z0 < nz as i32 {
         let z1 = (z0 + BATCH as i32).min(nz as i32);
-        let mut samples = Vec::new();
-        for p in z0 + 1..=z1 {
-            samples.push(if p < nz as i32 {
-                let mut s = Samples::new(info.dtype);
-                reader.read_slice(&mut s)?;
-                Some(s)
-            } else {
-                None
-            });
-        }
-        let planes: Vec<MeshPlane> = samples.into_par_iter().map(make_plane).collect();
-        let built: Vec<SliceMesh> = (0..planes.len())
+        let samples = read_planes(reader, info.dtype, z0 + 1..=z1, nz)?;
+        let planes: Vec<MeshPlane> = samples
             .into_par_iter()
-            .map(|k| {
-                let lo = if k == 0 { &lower } else { &planes[k - 1] };
-                slice_mesh(lo, &planes[k], z0 + k as i32, opts, &info, largest)
-            })
+            .map(|s| mesh_plane(s, nx, ny, &classifier))
             .collect();
-        for sm in built {
-            // Global numbers: the lower plane's block exists; the z-edges come next, then the
-            // upper plane's block.
-            let z_base = mesh.vertices.len() as u32;
-            mesh.vertices.extend_from_slice(&sm.z_vertices);
-            let upper_base = mesh.vertices.len() as u32;
-            mesh.vertices.extend_from_slice(&sm.upper_vertices);
-            // Surfaces (to pick the largest) are only tracked when asked for.
-            let base = if largest {
-                tracker.add_slice(
-                    &sm.surfels,
-                    &sm.areas,
-                    prev.as_ref().map(|(p, b)| (p, *b)),
-                    opts.connectivity,
-                )?
-            } else {
-                0
-            };
-            let map = |v: u32| -> u32 {
-                let local = v & !KIND;
-                match v & KIND {
-                    LOWER => lower_base + local,
-                    UPPER => upper_base + local,
-                    _ => z_base + local,
-                }
-            };
-            mesh.triangles.reserve(sm.triangles.len());
-            for t in &sm.triangles {
-                let mut tri = [map(t[0]), map(t[1]), map(t[2])];
-                if flip {
-                    tri.swap(1, 2);
-                }
-                mesh.triangles.push(tri);
-            }
-            if largest {
-                tri_ribbon.extend(sm.ribbon.iter().map(|&r| base + r));
-            }
-            lower_base = upper_base;
-            prev = Some((sm.surfels, base));
+        for sm in mesh_batch(&lower, &planes, z0, opts, &info, largest) {
+            out.add(sm)?;
             progress.advance(1);
         }
         lower = planes.into_iter().last().expect("a batch has a plane");
         z0 = z1;
     }
     progress.finish();
-    if mesh.vertices.len() > u32::MAX as usize / 4 {
-        return Err(Error::Internal(
-            "mesh too large for 32-bit vertex numbers".into(),
-        ));
+    out.finish()
+}
+
+/// The samples of planes `planes`, read in order; plane `nz` (the padding above) has none.
+fn read_planes(
+    reader: &mut dyn SliceReader,
+    dtype: DType,
+    planes: std::ops::RangeInclusive<i32>,
+    nz: usize,
+) -> Result<Vec<Option<Samples>>> {
+    let mut samples = Vec::new();
+    for p in planes {
+        samples.push(if p < nz as i32 {
+            let mut s = Samples::new(dtype);
+            reader.read_slice(&mut s)?;
+            Some(s)
+        } else {
+            None
+        });
     }
-    if largest {
-        keep_largest(&mut mesh, &tri_ribbon, &mut tracker);
+    Ok(samples)
+}
+
+/// A plane ready for meshing, from its samples (None: padding, all outside).
+fn mesh_plane(
+    samples: Option<Samples>,
+    nx: usize,
+    ny: usize,
+    classifier: &Classifier,
+) -> MeshPlane {
+    let mut mask = PlaneMask::empty(nx, ny);
+    if let Some(s) = &samples {
+        mask.fill(s, classifier);
     }
-    Ok(mesh)
+    let edges = plane_edges(&mask);
+    MeshPlane {
+        mask,
+        edges,
+        samples,
+    }
+}
+
+/// Meshes a batch of slices in parallel: slice `z0 + k` lies between `planes[k - 1]` (`lower`
+/// for k = 0) and `planes[k]`.
+fn mesh_batch(
+    lower: &MeshPlane,
+    planes: &[MeshPlane],
+    z0: i32,
+    opts: &SurfaceOptions,
+    info: &VolumeInfo,
+    want_areas: bool,
+) -> Vec<SliceMesh> {
+    (0..planes.len())
+        .into_par_iter()
+        .map(|k| {
+            let lo = if k == 0 { lower } else { &planes[k - 1] };
+            slice_mesh(lo, &planes[k], z0 + k as i32, opts, info, want_areas)
+        })
+        .collect()
+}
+
+/// The mesh being put together from slice meshes, bottom to top.
+struct MeshAssembly {
+    mesh: Mesh,
+    /// The affine mirrors space: swap two corners of each triangle so it still faces out.
+    flip: bool,
+    /// Track the surfaces (ribbons joined across planes) to keep only the largest.
+    largest: bool,
+    conn: Connectivity,
+    /// Ribbon (tracker number) of each triangle, when `largest`.
+    tri_ribbon: Vec<u32>,
+    tracker: SurfaceTracker,
+    /// First vertex of the lower plane's x/y crossings.
+    lower_base: u32,
+    /// The previous slice's surfels and the tracker number of its first ribbon.
+    prev: Option<(SliceSurfels, u32)>,
+}
+
+impl MeshAssembly {
+    fn new(flip: bool, largest: bool, conn: Connectivity) -> MeshAssembly {
+        MeshAssembly {
+            mesh: Mesh::default(),
+            flip,
+            largest,
+            conn,
+            tri_ribbon: Vec::new(),
+            tracker: SurfaceTracker::default(),
+            lower_base: 0,
+            prev: None,
+        }
+    }
+
+    /// Appends the next slice: its vertices, its triangles with global vertex numbers, and with
+    /// `largest` its ribbons.
+    fn add(&mut self, sm: SliceMesh) -> Result<()> {
+        // Global numbers: the lower plane's block exists; the z-edges come next, then the upper
+        // plane's block.
+        let mesh = &mut self.mesh;
+        let z_base = mesh.vertices.len() as u32;
+        mesh.vertices.extend_from_slice(&sm.z_vertices);
+        let upper_base = mesh.vertices.len() as u32;
+        mesh.vertices.extend_from_slice(&sm.upper_vertices);
+        // Surfaces (to pick the largest) are only tracked when asked for.
+        let base = if self.largest {
+            self.tracker.add_slice(
+                &sm.surfels,
+                &sm.areas,
+                self.prev.as_ref().map(|(p, b)| (p, *b)),
+                self.conn,
+            )?
+        } else {
+            0
+        };
+        let lower_base = self.lower_base;
+        let map = |v: u32| -> u32 {
+            let local = v & !KIND;
+            match v & KIND {
+                LOWER => lower_base + local,
+                UPPER => upper_base + local,
+                _ => z_base + local,
+            }
+        };
+        mesh.triangles.reserve(sm.triangles.len());
+        for t in &sm.triangles {
+            let mut tri = [map(t[0]), map(t[1]), map(t[2])];
+            if self.flip {
+                tri.swap(1, 2);
+            }
+            mesh.triangles.push(tri);
+        }
+        if self.largest {
+            self.tri_ribbon.extend(sm.ribbon.iter().map(|&r| base + r));
+        }
+        self.lower_base = upper_base;
+        self.prev = Some((sm.surfels, base));
+        Ok(())
+    }
+
+    /// The finished mesh; with `largest`, only the surface of largest area.
+    fn finish(mut self) -> Result<Mesh> {
+        if self.mesh.vertices.len() > u32::MAX as usize / 4 {
+            return Err(Error::Internal(
+                "mesh too large for 32-bit vertex numbers".into(),
+            ));
+        }
+        if self.largest {
+            keep_largest(&mut self.mesh, &self.tri_ribbon, &mut self.tracker);
+        }
+        Ok(self.mesh)
+    }
 }
 
 /// Keeps the triangles of the surface with the largest area and the vertices they use.

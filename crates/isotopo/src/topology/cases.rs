@@ -286,153 +286,215 @@ fn face_normal(f: usize) -> [f64; 3] {
     n
 }
 
+/// One boundary segment of a case before pieces are numbered: the group owning it, where it lies
+/// (face and segment slot) and its direction along the owner's loop (`from` → `to`, cube edges).
+struct Segment {
+    group: usize,
+    face: usize,
+    slot: usize,
+    from: u8,
+    to: u8,
+}
+
 fn derive_case(case: u8, conn: Connectivity) -> Case {
-    let inside = |c: u8| (case >> c) & 1 == 1;
     let groups = groups(case, conn);
+    let segs = oriented_segments(case, conn, &groups);
     let mut out = Case {
         face_owner: [[NONE; 2]; 6],
         edge_owner: [NONE; 12],
         z_upper: [NONE; 4],
         ..Default::default()
     };
-    // Segments of every face with their owning group and orientation.
-    // (group index, face, slot, from edge, to edge)
-    let mut segs: Vec<(usize, usize, usize, u8, u8)> = Vec::new();
-    for f in 0..6 {
-        let states = face_states(case, f);
-        let (pairs, n) = face_segments(states, conn);
-        for (slot, &(k0, k1)) in pairs.iter().take(n).enumerate() {
-            // The corners on each side of the segment, next to it. With two crossing edges the
-            // segment splits the face into two runs of corners, each of one state. With four,
-            // each segment cuts off one corner; its other side holds that corner's two
-            // neighbours (the middle region).
-            let (side_a, side_b): (Vec<u8>, Vec<u8>) = if n == 1 {
-                (
-                    (k0 + 1..=k1)
-                        .map(|k| FACE_CORNERS[f][k as usize % 4])
-                        .collect(),
-                    (k1 + 1..k0 + 5)
-                        .map(|k| FACE_CORNERS[f][k as usize % 4])
-                        .collect(),
-                )
-            } else {
-                // Segment (k0, k1) with k1 = k0 + 1 cuts off local corner k1; (0, 3) cuts off 0.
-                let cut = if k1 == k0 + 1 { k1 } else { 0 };
-                (
-                    vec![FACE_CORNERS[f][cut as usize]],
-                    vec![
-                        FACE_CORNERS[f][(cut as usize + 1) % 4],
-                        FACE_CORNERS[f][(cut as usize + 3) % 4],
-                    ],
-                )
-            };
-            let group_side = if inside(side_a[0]) == conn.group_state() {
-                &side_a
-            } else {
-                &side_b
-            };
-            let owner_corner = group_side[0];
-            let g = groups
-                .iter()
-                .position(|&m| m & (1 << owner_corner) != 0)
-                .unwrap();
-            // Orientation: with d pointing from the inside corners toward the outside ones,
-            // walking from P to Q keeps the piece on the left seen from outside when
-            // (d × (Q - P)) · n_face < 0.
-            let (e0, e1) = (FACE_EDGES[f][k0 as usize], FACE_EDGES[f][k1 as usize]);
-            let (p, q) = (edge_midpoint(e0), edge_midpoint(e1));
-            let centroid = |cs: &[u8]| {
-                let mut c = [0.0; 3];
-                for &x in cs {
-                    let pos = corner_pos(x);
-                    for i in 0..3 {
-                        c[i] += pos[i] / cs.len() as f64;
-                    }
-                }
-                c
-            };
-            let inside_side = if inside(side_a[0]) { &side_a } else { &side_b };
-            let outside_side = if inside(side_a[0]) { &side_b } else { &side_a };
-            let d = sub(centroid(outside_side), centroid(inside_side));
-            let forward = dot(cross(d, sub(q, p)), face_normal(f)) < 0.0;
-            let (from, to) = if forward { (e0, e1) } else { (e1, e0) };
-            segs.push((g, f, slot, from, to));
-        }
-    }
     // Pieces: groups owning segments, in order of their lowest corner.
     for (g, &mask) in groups.iter().enumerate() {
-        let mine: Vec<&(usize, usize, usize, u8, u8)> = segs.iter().filter(|s| s.0 == g).collect();
+        let mine: Vec<&Segment> = segs.iter().filter(|s| s.group == g).collect();
         if mine.is_empty() {
             continue;
         }
-        let piece_index = out.pieces.len() as u8;
-        // Chain segments into loops: each crossing point starts exactly one of the piece's segments.
-        let mut next = [NONE; 12];
-        for s in &mine {
-            next[s.3 as usize] = s.4;
-        }
-        let mut seen = [false; 12];
-        let mut loops = Vec::new();
-        for s in &mine {
-            if seen[s.3 as usize] {
-                continue;
-            }
-            let mut lp = Vec::new();
-            let mut e = s.3;
-            while !seen[e as usize] {
-                seen[e as usize] = true;
-                lp.push(e);
-                e = next[e as usize];
-            }
-            loops.push(lp);
-        }
-        let nseg = mine.len() as i32;
-        let z_face = mine.iter().filter(|s| s.1 >= 4).count() as i32;
-        let side = nseg - z_face;
-        let points: Vec<u8> = loops.iter().flatten().copied().collect();
-        let z_points = points
-            .iter()
-            .filter(|&&e| EDGE_AXIS[e as usize] == 2)
-            .count() as i32;
-        let plane_points = points.len() as i32 - z_points;
-        let k = loops.len() as i32;
-        let piece = Piece {
-            corners: mask,
-            triangles: triangulate(&loops),
-            chi4: (8 - 4 * k - nseg) as i8,
-            ribbon_chi4: (8 - 4 * k - 2 * side - 4 * z_face + z_points + 2 * plane_points) as i8,
-            z_face_segments: z_face as u8,
-            loops,
-        };
-        for s in &mine {
-            out.face_owner[s.1][s.2] = piece_index;
-            out.face_segment[s.1][s.2] = (s.3, s.4);
-        }
-        for &e in &points {
-            out.edge_owner[e as usize] = piece_index;
-        }
-        let k = piece_index as usize;
-        out.chi4[k] = piece.chi4;
-        out.ribbon_chi4[k] = piece.ribbon_chi4;
-        out.z_upper[k] = points
-            .iter()
-            .find(|&&e| EDGE_AXIS[e as usize] == 2)
-            .map(|&e| EDGE_CORNERS[e as usize].1)
-            .unwrap_or(NONE);
-        for t in &piece.triangles {
-            let n = out.n_triangles as usize;
-            assert!(
-                n < MAX_TRIANGLES,
-                "case {case:#010b} has more than {MAX_TRIANGLES} triangles"
-            );
-            out.triangles[n] = *t;
-            out.triangle_piece[n] = piece_index;
-            out.n_triangles += 1;
-        }
+        let piece = make_piece(mask, &mine);
+        record_piece(&mut out, case, &piece, &mine);
         out.pieces.push(piece);
     }
     out.n_pieces = out.pieces.len() as u8;
     out
+}
+
+/// Segments of every face with their owning group and orientation, face by face, each face's in
+/// canonical slot order.
+fn oriented_segments(case: u8, conn: Connectivity, groups: &[u8]) -> Vec<Segment> {
+    let inside = |c: u8| (case >> c) & 1 == 1;
+    let mut segs = Vec::new();
+    for f in 0..6 {
+        let (pairs, n) = face_segments(face_states(case, f), conn);
+        for (slot, &(k0, k1)) in pairs.iter().take(n).enumerate() {
+            let (side_a, side_b) = segment_sides(f, k0, k1, n);
+            let (inside_side, outside_side) = if inside(side_a[0]) {
+                (&side_a, &side_b)
+            } else {
+                (&side_b, &side_a)
+            };
+            let group_side = if conn.group_state() {
+                inside_side
+            } else {
+                outside_side
+            };
+            let owner_corner = group_side[0];
+            let group = groups
+                .iter()
+                .position(|&m| m & (1 << owner_corner) != 0)
+                .unwrap();
+            let (from, to) = segment_direction(f, k0, k1, inside_side, outside_side);
+            segs.push(Segment {
+                group,
+                face: f,
+                slot,
+                from,
+                to,
+            });
+        }
+    }
+    segs
+}
+
+/// The corners on each side of segment `(k0, k1)` (local edges) of face `f`, next to it; `n` is
+/// the face's number of segments.
+///
+/// ```text
+///   3 --2-- 2      local corner k sits between local edges k-1 and k;
+///   |       |      local edge k joins local corners k and k+1 (mod 4)
+///   3       1
+///   |       |
+///   0 --0-- 1
+/// ```
+///
+/// With two crossing edges the segment splits the face into two runs of corners, each of one
+/// state. With four, each segment cuts off one corner; its other side holds that corner's two
+/// neighbours (the middle region).
+fn segment_sides(f: usize, k0: u8, k1: u8, n: usize) -> (Vec<u8>, Vec<u8>) {
+    let corner = |k: u8| FACE_CORNERS[f][k as usize % 4];
+    if n == 1 {
+        (
+            (k0 + 1..=k1).map(corner).collect(),
+            (k1 + 1..k0 + 5).map(corner).collect(),
+        )
+    } else {
+        // Segment (k0, k1) with k1 = k0 + 1 cuts off local corner k1; (0, 3) cuts off 0.
+        let cut = if k1 == k0 + 1 { k1 } else { 0 };
+        (vec![corner(cut)], vec![corner(cut + 1), corner(cut + 3)])
+    }
+}
+
+/// Segment `(k0, k1)` of face `f` as (from, to) cube edges, in its piece's loop direction.
+///
+/// With d pointing from the inside corners toward the outside ones, walking from P to Q keeps the
+/// piece on the left seen from outside when (d × (Q - P)) · n_face < 0.
+fn segment_direction(
+    f: usize,
+    k0: u8,
+    k1: u8,
+    inside_side: &[u8],
+    outside_side: &[u8],
+) -> (u8, u8) {
+    let (e0, e1) = (FACE_EDGES[f][k0 as usize], FACE_EDGES[f][k1 as usize]);
+    let (p, q) = (edge_midpoint(e0), edge_midpoint(e1));
+    let d = sub(centroid(outside_side), centroid(inside_side));
+    let forward = dot(cross(d, sub(q, p)), face_normal(f)) < 0.0;
+    if forward {
+        (e0, e1)
+    } else {
+        (e1, e0)
+    }
+}
+
+/// Mean position of some cube corners.
+fn centroid(cs: &[u8]) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    for &x in cs {
+        let pos = corner_pos(x);
+        for i in 0..3 {
+            c[i] += pos[i] / cs.len() as f64;
+        }
+    }
+    c
+}
+
+/// The piece of the group with corners `mask`, bounded by the segments `mine`: its loops,
+/// triangles and shares of the Euler characteristics (see [`Piece`]).
+fn make_piece(mask: u8, mine: &[&Segment]) -> Piece {
+    let loops = chain_loops(mine);
+    let nseg = mine.len() as i32;
+    let z_face = mine.iter().filter(|s| s.face >= 4).count() as i32;
+    let side = nseg - z_face;
+    let points: Vec<u8> = loops.iter().flatten().copied().collect();
+    let z_points = points
+        .iter()
+        .filter(|&&e| EDGE_AXIS[e as usize] == 2)
+        .count() as i32;
+    let plane_points = points.len() as i32 - z_points;
+    let k = loops.len() as i32;
+    Piece {
+        corners: mask,
+        triangles: triangulate(&loops),
+        chi4: (8 - 4 * k - nseg) as i8,
+        ribbon_chi4: (8 - 4 * k - 2 * side - 4 * z_face + z_points + 2 * plane_points) as i8,
+        z_face_segments: z_face as u8,
+        loops,
+    }
+}
+
+/// Chains a piece's segments into loops: each crossing point starts exactly one of them.
+fn chain_loops(mine: &[&Segment]) -> Vec<Vec<u8>> {
+    let mut next = [NONE; 12];
+    for s in mine {
+        next[s.from as usize] = s.to;
+    }
+    let mut seen = [false; 12];
+    let mut loops = Vec::new();
+    for s in mine {
+        if seen[s.from as usize] {
+            continue;
+        }
+        let mut lp = Vec::new();
+        let mut e = s.from;
+        while !seen[e as usize] {
+            seen[e as usize] = true;
+            lp.push(e);
+            e = next[e as usize];
+        }
+        loops.push(lp);
+    }
+    loops
+}
+
+/// Copies `piece`, the next piece of case `case`, into `out`'s compact tables that the per-cube
+/// loops read (the piece itself is pushed by the caller).
+fn record_piece(out: &mut Case, case: u8, piece: &Piece, mine: &[&Segment]) {
+    let piece_index = out.pieces.len() as u8;
+    for s in mine {
+        out.face_owner[s.face][s.slot] = piece_index;
+        out.face_segment[s.face][s.slot] = (s.from, s.to);
+    }
+    let points = || piece.loops.iter().flatten();
+    for &e in points() {
+        out.edge_owner[e as usize] = piece_index;
+    }
+    let k = piece_index as usize;
+    out.chi4[k] = piece.chi4;
+    out.ribbon_chi4[k] = piece.ribbon_chi4;
+    out.z_upper[k] = points()
+        .find(|&&e| EDGE_AXIS[e as usize] == 2)
+        .map(|&e| EDGE_CORNERS[e as usize].1)
+        .unwrap_or(NONE);
+    for t in &piece.triangles {
+        let n = out.n_triangles as usize;
+        assert!(
+            n < MAX_TRIANGLES,
+            "case {case:#010b} has more than {MAX_TRIANGLES} triangles"
+        );
+        out.triangles[n] = *t;
+        out.triangle_piece[n] = piece_index;
+        out.n_triangles += 1;
+    }
 }
 
 /// Do two cube edges lie on a common face? A triangle edge between their crossing points would
@@ -445,101 +507,134 @@ fn share_face(a: u8, b: u8) -> bool {
 /// diagonals) that uses no diagonal across a cube face and maximises the worst alignment of
 /// triangle normals with the loop's normal; for a tube, a strip. Vertices are edge midpoints.
 fn triangulate(loops: &[Vec<u8>]) -> Vec<[u8; 3]> {
-    let pos = |e: u8| edge_midpoint(e);
     match loops.len() {
-        1 => {
-            let lp = &loops[0];
-            let n = lp.len();
-            // Newell normal of the loop.
-            let mut nrm = [0.0; 3];
-            for i in 0..n {
-                let (a, b) = (pos(lp[i]), pos(lp[(i + 1) % n]));
-                nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
-                nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
-                nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
-            }
-            let quality = |i: usize, j: usize, k: usize| {
-                let (a, b, c) = (pos(lp[i]), pos(lp[j]), pos(lp[k]));
-                let t = cross(sub(b, a), sub(c, a));
-                dot(t, nrm) / dot(t, t).sqrt().max(1e-12)
-            };
-            let allowed = |i: usize, j: usize| {
-                j == i + 1 || (i == 0 && j == n - 1) || !share_face(lp[i], lp[j])
-            };
-            // best[i][j]: the best worst-quality triangulating the sub-polygon i..=j.
-            let mut best = vec![vec![f64::INFINITY; n]; n];
-            let mut split = vec![vec![usize::MAX; n]; n];
-            for len in 2..n {
-                for i in 0..n - len {
-                    let j = i + len;
-                    best[i][j] = f64::NEG_INFINITY;
-                    if !allowed(i, j) {
-                        continue;
-                    }
-                    for k in i + 1..j {
-                        if !allowed(i, k) || !allowed(k, j) {
-                            continue;
-                        }
-                        let left = if k == i + 1 {
-                            f64::INFINITY
-                        } else {
-                            best[i][k]
-                        };
-                        let right = if j == k + 1 {
-                            f64::INFINITY
-                        } else {
-                            best[k][j]
-                        };
-                        let q = quality(i, k, j).min(left).min(right);
-                        if q > best[i][j] {
-                            best[i][j] = q;
-                            split[i][j] = k;
-                        }
-                    }
-                }
-            }
-            assert!(
-                split[0][n - 1] != usize::MAX,
-                "no triangulation of loop {lp:?} avoids face diagonals"
-            );
-            let mut tris = Vec::new();
-            let mut stack = vec![(0, n - 1)];
-            while let Some((i, j)) = stack.pop() {
-                if j < i + 2 {
-                    continue;
-                }
-                let k = split[i][j];
-                tris.push([lp[i], lp[k], lp[j]]);
-                stack.push((i, k));
-                stack.push((k, j));
-            }
-            tris
-        }
-        2 => {
-            let (a, b) = (&loops[0], &loops[1]);
-            assert!(a.len() == 3 && b.len() == 3, "tubes join two triangles");
-            // Walk `a` forward and `b` backward (boundary loops of an annulus run opposite ways).
-            let dist = |p: [f64; 3], q: [f64; 3]| dot(sub(p, q), sub(p, q)).sqrt();
-            let best_s = (0..3)
-                .min_by(|&s1, &s2| {
-                    let cost = |s: usize| {
-                        (0..3)
-                            .map(|i| dist(pos(a[i]), pos(b[(s + 3 - i) % 3])))
-                            .sum::<f64>()
-                    };
-                    cost(s1).partial_cmp(&cost(s2)).unwrap()
-                })
-                .unwrap();
-            let bb = |i: usize| b[(best_s + 3 - i % 3) % 3];
-            let mut tris = Vec::new();
-            for i in 0..3 {
-                tris.push([a[i], a[(i + 1) % 3], bb(i)]);
-                tris.push([bb(i + 1), bb(i), a[(i + 1) % 3]]);
-            }
-            tris
-        }
+        1 => triangulate_disk(&loops[0]),
+        2 => triangulate_tube(&loops[0], &loops[1]),
         _ => unreachable!("pieces are disks or tubes"),
     }
+}
+
+/// A disk's triangles, read back from the split table of [`disk_splits`] (root chord (0, n-1)).
+fn triangulate_disk(lp: &[u8]) -> Vec<[u8; 3]> {
+    let n = lp.len();
+    let split = disk_splits(lp);
+    assert!(
+        split[0][n - 1] != usize::MAX,
+        "no triangulation of loop {lp:?} avoids face diagonals"
+    );
+    let mut tris = Vec::new();
+    let mut stack = vec![(0, n - 1)];
+    while let Some((i, j)) = stack.pop() {
+        if j < i + 2 {
+            continue;
+        }
+        let k = split[i][j];
+        tris.push([lp[i], lp[k], lp[j]]);
+        stack.push((i, k));
+        stack.push((k, j));
+    }
+    tris
+}
+
+/// Newell normal of a loop of edge midpoints.
+fn newell_normal(lp: &[u8]) -> [f64; 3] {
+    let n = lp.len();
+    let mut nrm = [0.0; 3];
+    for i in 0..n {
+        let (a, b) = (edge_midpoint(lp[i]), edge_midpoint(lp[(i + 1) % n]));
+        nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    nrm
+}
+
+/// The dynamic programme over the sub-polygons `i..=j` of a disk's loop `lp`: `split[i][j]` is
+/// the apex `k` of the triangle on chord (i, j) in the triangulation of `i..=j` whose worst
+/// triangle is best aligned with the loop's normal, among those using no chord that runs inside
+/// a cube face; `usize::MAX` where there is none.
+///
+/// ```text
+///        k
+///       / \        triangle (i, k, j), then the best of i..=k and of k..=j
+///      i---j
+/// ```
+fn disk_splits(lp: &[u8]) -> Vec<Vec<usize>> {
+    let n = lp.len();
+    let pos = |e: u8| edge_midpoint(e);
+    let nrm = newell_normal(lp);
+    let quality = |i: usize, j: usize, k: usize| {
+        let (a, b, c) = (pos(lp[i]), pos(lp[j]), pos(lp[k]));
+        let t = cross(sub(b, a), sub(c, a));
+        dot(t, nrm) / dot(t, t).sqrt().max(1e-12)
+    };
+    let allowed =
+        |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1) || !share_face(lp[i], lp[j]);
+    // best[i][j]: the best worst-quality triangulating the sub-polygon i..=j.
+    let mut best = vec![vec![f64::INFINITY; n]; n];
+    let mut split = vec![vec![usize::MAX; n]; n];
+    for len in 2..n {
+        for i in 0..n - len {
+            let j = i + len;
+            best[i][j] = f64::NEG_INFINITY;
+            if !allowed(i, j) {
+                continue;
+            }
+            for k in i + 1..j {
+                if !allowed(i, k) || !allowed(k, j) {
+                    continue;
+                }
+                let left = if k == i + 1 {
+                    f64::INFINITY
+                } else {
+                    best[i][k]
+                };
+                let right = if j == k + 1 {
+                    f64::INFINITY
+                } else {
+                    best[k][j]
+                };
+                let q = quality(i, k, j).min(left).min(right);
+                if q > best[i][j] {
+                    best[i][j] = q;
+                    split[i][j] = k;
+                }
+            }
+        }
+    }
+    split
+}
+
+/// A tube's strip between its two triangular loops, rung `i` joining `a[i]` to `b'(i)`:
+///
+/// ```text
+///    a[i] ----- a[i+1]     triangles (a[i], a[i+1], b'(i)) and (b'(i+1), b'(i), a[i+1]),
+///     |        /  |        b'(i) = b[(s - i) mod 3], with the offset s whose rungs are
+///     |      /    |        shortest in total
+///   b'(i) ----- b'(i+1)
+/// ```
+fn triangulate_tube(a: &[u8], b: &[u8]) -> Vec<[u8; 3]> {
+    assert!(a.len() == 3 && b.len() == 3, "tubes join two triangles");
+    let pos = |e: u8| edge_midpoint(e);
+    // Walk `a` forward and `b` backward (boundary loops of an annulus run opposite ways).
+    let dist = |p: [f64; 3], q: [f64; 3]| dot(sub(p, q), sub(p, q)).sqrt();
+    let best_s = (0..3)
+        .min_by(|&s1, &s2| {
+            let cost = |s: usize| {
+                (0..3)
+                    .map(|i| dist(pos(a[i]), pos(b[(s + 3 - i) % 3])))
+                    .sum::<f64>()
+            };
+            cost(s1).partial_cmp(&cost(s2)).unwrap()
+        })
+        .unwrap();
+    let bb = |i: usize| b[(best_s + 3 - i % 3) % 3];
+    let mut tris = Vec::new();
+    for i in 0..3 {
+        tris.push([a[i], a[(i + 1) % 3], bb(i)]);
+        tris.push([bb(i + 1), bb(i), a[(i + 1) % 3]]);
+    }
+    tris
 }
 
 /// The 256 cases for each connectivity, derived once.

@@ -176,71 +176,12 @@ impl SurfaceTracker {
 
     /// Folds ribbons into surfaces and computes the report.
     pub fn report(&mut self, dims: [usize; 3], affine: &Affine) -> Result<GenusReport> {
-        let n = self.ribbons.len();
-        let mut root_index = vec![u32::MAX; n];
-        let mut acc: Vec<RibbonStats> = Vec::new();
-        for r in 0..n {
-            let root = self.uf.find(r as u32) as usize;
-            if root_index[root] == u32::MAX {
-                root_index[root] = acc.len() as u32;
-                acc.push(RibbonStats {
-                    chi4: 0,
-                    area: 0.0,
-                    bbox: BBox::EMPTY,
-                    key: (i32::MAX, u32::MAX, u32::MAX),
-                    upper_inside: None,
-                    surfels: 0,
-                });
-            }
-            let a = &mut acc[root_index[root] as usize];
-            let rb = &self.ribbons[r];
-            a.chi4 += rb.chi4;
-            a.area += rb.area;
-            a.bbox.union(&rb.bbox);
-            a.surfels += rb.surfels;
-            if rb.key < a.key {
-                a.key = rb.key;
-                a.upper_inside = rb.upper_inside;
-            }
-        }
-        let _ = dims;
+        let acc = self.sum_surfaces();
         let mut surfaces = Vec::with_capacity(acc.len());
         for a in &acc {
-            if a.chi4 % 8 != 0 {
-                return Err(Error::Internal(format!(
-                    "a surface has Euler characteristic {}/4, not an even integer",
-                    a.chi4
-                )));
-            }
-            let chi = a.chi4 / 4;
-            if chi > 2 {
-                return Err(Error::Internal(format!(
-                    "a connected surface has Euler characteristic {chi} > 2"
-                )));
-            }
-            let mut bbox = a.bbox;
-            for k in 0..3 {
-                bbox.min[k] = bbox.min[k].clamp(0, dims[k] as i64 - 1);
-                bbox.max[k] = bbox.max[k].clamp(0, dims[k] as i64 - 1);
-            }
-            surfaces.push((
-                a.key,
-                SurfaceInfo {
-                    id: 0,
-                    genus: ((2 - chi) / 2) as u32,
-                    chi,
-                    encloses: if a.upper_inside.unwrap_or(true) {
-                        Encloses::Material
-                    } else {
-                        Encloses::Cavity
-                    },
-                    area: a.area,
-                    bbox,
-                    bbox_mm: bbox.to_mm(affine),
-                    surfels: a.surfels,
-                },
-            ));
+            surfaces.push((a.key, surface_info(a, dims, affine)?));
         }
+        // Ids by lowest point, then the listing order: genus, then area, both decreasing.
         surfaces.sort_by_key(|s| s.0);
         let mut surfaces: Vec<SurfaceInfo> = surfaces
             .into_iter()
@@ -274,6 +215,76 @@ impl SurfaceTracker {
             surfaces,
         })
     }
+
+    /// The ribbons' stats summed per surface (union-find class), in order of each surface's
+    /// first ribbon; a surface's key and `upper_inside` come from its lowest ribbon.
+    fn sum_surfaces(&mut self) -> Vec<RibbonStats> {
+        let n = self.ribbons.len();
+        let mut root_index = vec![u32::MAX; n];
+        let mut acc: Vec<RibbonStats> = Vec::new();
+        for r in 0..n {
+            let root = self.uf.find(r as u32) as usize;
+            if root_index[root] == u32::MAX {
+                root_index[root] = acc.len() as u32;
+                acc.push(RibbonStats {
+                    chi4: 0,
+                    area: 0.0,
+                    bbox: BBox::EMPTY,
+                    key: (i32::MAX, u32::MAX, u32::MAX),
+                    upper_inside: None,
+                    surfels: 0,
+                });
+            }
+            let a = &mut acc[root_index[root] as usize];
+            let rb = &self.ribbons[r];
+            a.chi4 += rb.chi4;
+            a.area += rb.area;
+            a.bbox.union(&rb.bbox);
+            a.surfels += rb.surfels;
+            if rb.key < a.key {
+                a.key = rb.key;
+                a.upper_inside = rb.upper_inside;
+            }
+        }
+        acc
+    }
+}
+
+/// A surface's report entry (id 0 until numbered) from its summed ribbon stats `a`, after
+/// checking that its Euler characteristic is even and at most 2, as a connected closed
+/// orientable surface's is.
+fn surface_info(a: &RibbonStats, dims: [usize; 3], affine: &Affine) -> Result<SurfaceInfo> {
+    if a.chi4 % 8 != 0 {
+        return Err(Error::Internal(format!(
+            "a surface has Euler characteristic {}/4, not an even integer",
+            a.chi4
+        )));
+    }
+    let chi = a.chi4 / 4;
+    if chi > 2 {
+        return Err(Error::Internal(format!(
+            "a connected surface has Euler characteristic {chi} > 2"
+        )));
+    }
+    let mut bbox = a.bbox;
+    for k in 0..3 {
+        bbox.min[k] = bbox.min[k].clamp(0, dims[k] as i64 - 1);
+        bbox.max[k] = bbox.max[k].clamp(0, dims[k] as i64 - 1);
+    }
+    Ok(SurfaceInfo {
+        id: 0,
+        genus: ((2 - chi) / 2) as u32,
+        chi,
+        encloses: if a.upper_inside.unwrap_or(true) {
+            Encloses::Material
+        } else {
+            Encloses::Cavity
+        },
+        area: a.area,
+        bbox,
+        bbox_mm: bbox.to_mm(affine),
+        surfels: a.surfels,
+    })
 }
 
 /// Area (mm²) of each ribbon of a slice, from its triangles with interpolated vertices.

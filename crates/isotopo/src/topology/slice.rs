@@ -45,6 +45,24 @@ pub struct Ribbon {
     pub first_cube: u32,
 }
 
+impl Ribbon {
+    /// Adds piece `k` of `cube` (index `q` into the slice's cubes), whose case is `case`.
+    #[inline]
+    fn add_piece(&mut self, case: &Case, k: usize, cube: &Cube, q: u32) {
+        self.chi4 += case.ribbon_chi4[k] as i32;
+        self.surface_chi4 += case.chi4[k] as i32;
+        self.pieces += 1;
+        self.min = [self.min[0].min(cube.i), self.min[1].min(cube.j)];
+        self.max = [self.max[0].max(cube.i), self.max[1].max(cube.j)];
+        if self.first_cube == u32::MAX {
+            self.first_cube = q;
+        }
+        if self.upper_inside.is_none() && case.z_upper[k] != NONE {
+            self.upper_inside = Some((cube.case >> case.z_upper[k]) & 1 == 1);
+        }
+    }
+}
+
 /// Surfels of the slice between planes `z` and `z + 1`.
 #[derive(Clone, Debug, Default)]
 pub struct SliceSurfels {
@@ -143,16 +161,28 @@ impl SliceSurfels {
         uf: &mut UnionFind,
     ) {
         let table = cases(conn);
-        let (nx, ny) = (lower.nx, lower.ny);
         self.z = z;
-        self.nx = nx;
-        self.ny = ny;
+        self.nx = lower.nx;
+        self.ny = lower.ny;
+        let pieces = self.list_mixed_cubes(lower, upper, table);
+        uf.clear(pieces as usize);
+        self.join_side_faces(table, uf);
+        let (labels, n) = uf.labels();
+        self.piece_ribbon = labels;
+        self.sum_ribbons(table, n);
+    }
+
+    /// Lists the mixed cubes row by row, numbering their pieces; returns the number of pieces.
+    fn list_mixed_cubes(
+        &mut self,
+        lower: &PlaneMask,
+        upper: &PlaneMask,
+        table: &[Case; 256],
+    ) -> u32 {
         self.cubes.clear();
         self.row_start.clear();
-        self.bottom.clear();
-        self.top.clear();
         let mut pieces = 0u32;
-        for j in 0..=ny {
+        for j in 0..=self.ny {
             self.row_start.push(self.cubes.len() as u32);
             for_mixed_in_row(lower, upper, j, |i, case| {
                 self.cubes.push(Cube {
@@ -165,10 +195,21 @@ impl SliceSurfels {
             });
         }
         self.row_start.push(self.cubes.len() as u32);
-        // Join pieces across the -x and -y faces of each cube.
-        uf.clear(pieces as usize);
+        pieces
+    }
+
+    /// Joins pieces across the -x and -y faces of each cube (each side face is the -x or -y face
+    /// of one of its two cubes), and lists the cubes whose -z / +z faces carry segments.
+    ///
+    /// ```text
+    ///   row j     [q-1][ q ]     -x face: the previous cube of the row
+    ///   row j-1        [ b ]     -y face: cube b, found by walking row j-1 alongside row j
+    /// ```
+    fn join_side_faces(&mut self, table: &[Case; 256], uf: &mut UnionFind) {
+        self.bottom.clear();
+        self.top.clear();
         let mut below_row = 0usize; // walks row j-1 alongside row j
-        for j in 0..=ny {
+        for j in 0..=self.ny {
             let (r0, r1) = (self.row_start[j] as usize, self.row_start[j + 1] as usize);
             let (p0, p1) = if j > 0 {
                 (self.row_start[j - 1] as usize, self.row_start[j] as usize)
@@ -200,8 +241,11 @@ impl SliceSurfels {
                 }
             }
         }
-        let (labels, n) = uf.labels();
-        self.piece_ribbon = labels;
+    }
+
+    /// Sums the pieces of each of the `n` ribbons (labelled in `piece_ribbon`), and counts their
+    /// segments on the lower and upper planes.
+    fn sum_ribbons(&mut self, table: &[Case; 256], n: usize) {
         self.ribbons.clear();
         self.ribbons.resize(
             n,
@@ -216,17 +260,7 @@ impl SliceSurfels {
             for k in 0..case.n_pieces as usize {
                 let r =
                     &mut self.ribbons[self.piece_ribbon[cube.first_piece as usize + k] as usize];
-                r.chi4 += case.ribbon_chi4[k] as i32;
-                r.surface_chi4 += case.chi4[k] as i32;
-                r.pieces += 1;
-                r.min = [r.min[0].min(cube.i), r.min[1].min(cube.j)];
-                r.max = [r.max[0].max(cube.i), r.max[1].max(cube.j)];
-                if r.first_cube == u32::MAX {
-                    r.first_cube = q as u32;
-                }
-                if r.upper_inside.is_none() && case.z_upper[k] != NONE {
-                    r.upper_inside = Some((cube.case >> case.z_upper[k]) & 1 == 1);
-                }
+                r.add_piece(case, k, cube, q as u32);
             }
             for slot in 0..2 {
                 let o = case.face_owner[4][slot];
