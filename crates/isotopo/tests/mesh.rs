@@ -143,7 +143,7 @@ fn verify(vol: &InMemoryVolume, iso: f64, conn: Connectivity, name: &str) -> Res
         .map(|s| {
             (
                 s.genus as i64,
-                s.encloses == isotopo::topology::Encloses::Material,
+                s.bounds == isotopo::topology::Bounds::Material,
             )
         })
         .collect();

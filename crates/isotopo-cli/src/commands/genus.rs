@@ -67,9 +67,9 @@ pub(crate) fn run(a: GenusArgs) -> Result<()> {
             "  {:>5} {:>6}  {:<8} {:>12.1} {:>9}  [{}..{}, {}..{}, {}..{}]",
             s.id,
             s.genus,
-            match s.encloses {
-                isotopo::topology::Encloses::Material => "material",
-                isotopo::topology::Encloses::Cavity => "cavity",
+            match s.bounds {
+                isotopo::topology::Bounds::Material => "material",
+                isotopo::topology::Bounds::Cavity => "cavity",
             },
             s.area,
             s.surfels,

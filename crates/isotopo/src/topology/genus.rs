@@ -49,10 +49,11 @@ impl SurfaceOptions {
     }
 }
 
-/// What a closed surface bounds.
+/// What a closed surface bounds (not to be confused with [`crate::loops::Encloses`], what a
+/// loop goes round).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Encloses {
+pub enum Bounds {
     /// The outer boundary of a component of the solid.
     Material,
     /// The boundary of a void inside the solid.
@@ -64,10 +65,13 @@ pub enum Encloses {
 pub struct SurfaceInfo {
     /// Stable id: surfaces are numbered by their lowest point (z, then y, then x).
     pub id: usize,
+    /// Its genus: handles on it.
     pub genus: u32,
     /// Euler characteristic of the surface.
     pub chi: i64,
-    pub encloses: Encloses,
+    /// A component's outer boundary, or a cavity's.
+    #[serde(rename = "encloses")]
+    pub bounds: Bounds,
     /// Area in mm² of the triangulated surface (vertices interpolated on cube edges).
     pub area: f64,
     /// Voxel index bounds of the cubes it passes through (clamped to the volume).
@@ -193,7 +197,7 @@ impl SurfaceTracker {
             .collect();
         let b0 = surfaces
             .iter()
-            .filter(|s| s.encloses == Encloses::Material)
+            .filter(|s| s.bounds == Bounds::Material)
             .count() as u64;
         let b2 = surfaces.len() as u64 - b0;
         let b1: u64 = surfaces.iter().map(|s| s.genus as u64).sum();
@@ -275,10 +279,10 @@ fn surface_info(a: &RibbonStats, dims: [usize; 3], affine: &Affine) -> Result<Su
         id: 0,
         genus: ((2 - chi) / 2) as u32,
         chi,
-        encloses: if a.upper_inside.unwrap_or(true) {
-            Encloses::Material
+        bounds: if a.upper_inside.unwrap_or(true) {
+            Bounds::Material
         } else {
-            Encloses::Cavity
+            Bounds::Cavity
         },
         area: a.area,
         bbox,

@@ -7,5 +7,5 @@ pub mod slice;
 pub mod values;
 
 pub use cases::Connectivity;
-pub use genus::{genus, Encloses, GenusReport, SurfaceInfo, SurfaceOptions};
+pub use genus::{genus, Bounds, GenusReport, SurfaceInfo, SurfaceOptions};
 pub use mask::{Classifier, Inside, PlaneMask};
