@@ -216,17 +216,10 @@ fn is_gz(path: &Path) -> bool {
     path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
 }
 
-pub(crate) fn open(path: &Path) -> Result<StreamReader> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
-    let gz = is_gz(path);
-    let mut input: Box<dyn Read> = if gz {
-        Box::new(MultiGzDecoder::new(std::io::BufReader::new(file)))
-    } else {
-        Box::new(std::io::BufReader::new(file))
-    };
-    let mut head = vec![0u8; 540];
-    let n = read_up_to(&mut input, &mut head).map_err(|e| gz_error(path, gz, e))?;
-    head.truncate(n);
+/// The header's version and byte order, from the header-size field (348 or 540, either byte
+/// order) and the magic; `head` is the first (up to 540) bytes of the stream.
+fn version(path: &Path, head: &[u8]) -> Result<(u8, Endian)> {
+    let n = head.len();
     if n < 348 {
         return Err(Error::input(
             path,
@@ -244,14 +237,27 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             return Err(Error::input(path, format!("header size field {x}"), EXPECT));
         }
     };
-    let hsize = if version == 1 { 348 } else { 540 };
-    if n < hsize {
+    if n < header_size(version) {
         return Err(Error::input(
             path,
             format!("a NIfTI-{version} header cut off after {n} bytes"),
             EXPECT,
         ));
     }
+    check_magic(path, head, version)?;
+    Ok((version, endian))
+}
+
+fn header_size(version: u8) -> usize {
+    if version == 1 {
+        348
+    } else {
+        540
+    }
+}
+
+/// Single-file magic: `n+1` (NIfTI-1) or `n+2` (NIfTI-2); `ni1` is a .hdr/.img pair.
+fn check_magic(path: &Path, head: &[u8], version: u8) -> Result<()> {
     if version == 1 {
         let magic = &head[344..348];
         if magic == b"ni1\0" {
@@ -275,7 +281,11 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "NIfTI-2 magic \"n+2\"",
         ));
     }
-    let p = parse(&head, version, endian);
+    Ok(())
+}
+
+/// The three spatial sizes; further axes must have size 1.
+fn dims(path: &Path, p: &Parsed) -> Result<[usize; 3]> {
     let ndim = p.dim[0];
     if !(1..=7).contains(&ndim) {
         return Err(Error::input(
@@ -304,13 +314,21 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             ));
         }
     }
-    let dtype = dtype_from_code(p.datatype).ok_or_else(|| {
+    Ok(dims)
+}
+
+fn sample_type(path: &Path, p: &Parsed) -> Result<DType> {
+    dtype_from_code(p.datatype).ok_or_else(|| {
         Error::input(
             path,
             format!("unsupported sample type {}", code_name(p.datatype)),
             "uint8, int8, uint16, int16, uint32, int32, float32 or float64 samples",
         )
-    })?;
+    })
+}
+
+/// Where the samples start in the (decompressed) stream.
+fn vox_offset(path: &Path, p: &Parsed, version: u8) -> Result<u64> {
     let vox_offset = p.vox_offset;
     if !(vox_offset.is_finite() && vox_offset >= 0.0 && vox_offset <= (1u64 << 32) as f64) {
         return Err(Error::input(
@@ -320,15 +338,26 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         ));
     }
     // NIfTI allows vox_offset 0 in .hdr/.img pairs only; single files put data after the header.
-    let vox_offset = (vox_offset as u64).max(hsize as u64 + 4);
-    // `head` holds the first `n` bytes of the stream; keep exactly those before the samples.
+    Ok((vox_offset as u64).max(header_size(version) as u64 + 4))
+}
+
+/// The bytes before the samples (header, extension flag, extensions), kept for writing back.
+fn header_bytes(
+    path: &Path,
+    gz: bool,
+    head: Vec<u8>,
+    input: &mut dyn Read,
+    vox_offset: u64,
+) -> Result<Vec<u8>> {
+    // `head` holds the first bytes of the stream (`input` the rest); keep exactly those before
+    // the samples.
     let mut bytes = head;
     if (bytes.len() as u64) >= vox_offset {
         bytes.truncate(vox_offset as usize);
     } else {
         let want = vox_offset as usize - bytes.len();
         let mut rest = vec![0u8; want];
-        let got = read_up_to(&mut input, &mut rest).map_err(|e| gz_error(path, gz, e))?;
+        let got = read_up_to(input, &mut rest).map_err(|e| gz_error(path, gz, e))?;
         if got < want {
             return Err(Error::input(
                 path,
@@ -338,13 +367,42 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         }
         bytes.extend_from_slice(&rest);
     }
-    let scaling = if p.scl_slope.is_finite() && p.scl_slope != 0.0 && p.scl_inter.is_finite() {
+    Ok(bytes)
+}
+
+/// `scl_slope`/`scl_inter`; a slope of 0 or NaN (or a non-finite intercept) means none.
+fn scaling(p: &Parsed) -> Scaling {
+    if p.scl_slope.is_finite() && p.scl_slope != 0.0 && p.scl_inter.is_finite() {
         Scaling {
             slope: p.scl_slope,
             inter: p.scl_inter,
         }
     } else {
         Scaling::IDENTITY
+    }
+}
+
+pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
+    let gz = is_gz(path);
+    let mut input: Box<dyn Read> = if gz {
+        Box::new(MultiGzDecoder::new(std::io::BufReader::new(file)))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    };
+    let mut head = vec![0u8; 540];
+    let n = read_up_to(&mut input, &mut head).map_err(|e| gz_error(path, gz, e))?;
+    head.truncate(n);
+    let (version, endian) = version(path, &head)?;
+    let p = parse(&head, version, endian);
+    let dims = dims(path, &p)?;
+    let dtype = sample_type(path, &p)?;
+    let vox_offset = vox_offset(path, &p, version)?;
+    let bytes = header_bytes(path, gz, head, &mut input, vox_offset)?;
+    let compression = if gz {
+        Compression::Gzip
+    } else {
+        Compression::None
     };
     let info = VolumeInfo {
         path: path.to_path_buf(),
@@ -352,23 +410,20 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         dims,
         dtype,
         affine: best_affine(&p, dims),
-        scaling,
+        scaling: scaling(&p),
         endian,
-        compression: if gz {
-            Compression::Gzip
-        } else {
-            Compression::None
-        },
+        compression,
         header: FormatHeader::Nifti(NiftiHeader {
             version,
             endian,
             bytes,
         }),
     };
+    // A gzip stream cannot seek: the header bytes are skipped after decompressing.
     let loc = DataLocation {
         path: path.to_path_buf(),
         offset: if gz { 0 } else { vox_offset },
-        compression: info.compression,
+        compression,
         skip: if gz { vox_offset } else { 0 },
         from_end: false,
         endian,
