@@ -519,120 +519,144 @@ fn quaternion(dir: [[f64; 3]; 3]) -> Option<([f64; 3], f64)> {
     Some(([b, c, d], qfac))
 }
 
-/// A fresh header describing `source` (when it comes from another format).
-fn new_header(source: &VolumeInfo) -> NiftiHeader {
-    let [nx, ny, nz] = source.dims;
-    let version = if source.dims.iter().any(|&d| d > i16::MAX as usize) {
-        2
-    } else {
-        1
-    };
-    let dtype = source.dtype;
-    let spacing = source.affine.spacing();
-    let quat = quaternion(source.affine.direction());
-    let qfac = quat.map(|q| q.1).unwrap_or(1.0);
-    let slope = if source.scaling.is_identity() {
-        0.0
-    } else {
-        source.scaling.slope
-    };
-    let inter = if source.scaling.is_identity() {
-        0.0
-    } else {
-        source.scaling.inter
-    };
-    let m = source.affine.m;
-    let mut b = Vec::new();
-    if version == 1 {
-        b.resize(352, 0);
-        let put16 =
-            |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
-        let put32 =
-            |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
-        let putf = |b: &mut Vec<u8>, o: usize, v: f64| {
-            b[o..o + 4].copy_from_slice(&(v as f32).to_le_bytes())
+/// What a fresh header states about a volume, in either version.
+struct Fresh {
+    dims: [usize; 3],
+    dtype: DType,
+    /// qfac, then the voxel sizes.
+    pixdim: [f64; 8],
+    slope: f64,
+    inter: f64,
+    /// Quaternion (b, c, d) when the direction matrix is a rotation (then a qform is written).
+    quatern: Option<[f64; 3]>,
+    /// The affine, written as the sform (and its last column as the qform's offset).
+    m: [[f64; 4]; 3],
+}
+
+impl Fresh {
+    fn of(source: &VolumeInfo) -> Fresh {
+        let spacing = source.affine.spacing();
+        let quat = quaternion(source.affine.direction());
+        let qfac = quat.map(|q| q.1).unwrap_or(1.0);
+        // A slope of 0 means no scaling.
+        let (slope, inter) = if source.scaling.is_identity() {
+            (0.0, 0.0)
+        } else {
+            (source.scaling.slope, source.scaling.inter)
         };
-        put32(&mut b, 0, 348);
-        b[39] = 0; // dim_info
-        let dim = [3i16, nx as i16, ny as i16, nz as i16, 1, 1, 1, 1];
-        for (i, d) in dim.iter().enumerate() {
-            put16(&mut b, 40 + 2 * i, *d);
+        Fresh {
+            dims: source.dims,
+            dtype: source.dtype,
+            pixdim: [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0],
+            slope,
+            inter,
+            quatern: quat.map(|q| q.0),
+            m: source.affine.m,
         }
-        put16(&mut b, 70, code_from_dtype(dtype));
-        put16(&mut b, 72, (dtype.size() * 8) as i16);
-        let pixdim = [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0];
-        for (i, p) in pixdim.iter().enumerate() {
-            putf(&mut b, 76 + 4 * i, *p);
-        }
-        putf(&mut b, 108, 352.0);
-        putf(&mut b, 112, slope);
-        putf(&mut b, 116, inter);
-        b[123] = 2 | 8; // mm, seconds
-        let descrip = b"isotopo";
-        b[148..148 + descrip.len()].copy_from_slice(descrip);
-        if let Some((q, _)) = quat {
-            put16(&mut b, 252, 1);
-            for (i, v) in q.iter().enumerate() {
-                putf(&mut b, 256 + 4 * i, *v);
-            }
-            for i in 0..3 {
-                putf(&mut b, 268 + 4 * i, m[i][3]);
-            }
-        }
-        put16(&mut b, 254, 1);
-        for r in 0..3 {
-            for c in 0..4 {
-                putf(&mut b, 280 + 16 * r + 4 * c, m[r][c]);
-            }
-        }
-        b[344..348].copy_from_slice(b"n+1\0");
-    } else {
-        b.resize(544, 0);
-        let put16 =
-            |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
-        let put32 =
-            |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
-        let put64 =
-            |b: &mut Vec<u8>, o: usize, v: i64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
-        let putf =
-            |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
-        put32(&mut b, 0, 540);
-        b[4..12].copy_from_slice(b"n+2\0\r\n\x1a\n");
-        put16(&mut b, 12, code_from_dtype(dtype));
-        put16(&mut b, 14, (dtype.size() * 8) as i16);
-        let dim = [3i64, nx as i64, ny as i64, nz as i64, 1, 1, 1, 1];
-        for (i, d) in dim.iter().enumerate() {
-            put64(&mut b, 16 + 8 * i, *d);
-        }
-        let pixdim = [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0];
-        for (i, p) in pixdim.iter().enumerate() {
-            putf(&mut b, 104 + 8 * i, *p);
-        }
-        put64(&mut b, 168, 544);
-        putf(&mut b, 176, slope);
-        putf(&mut b, 184, inter);
-        if let Some((q, _)) = quat {
-            put32(&mut b, 344, 1);
-            for (i, v) in q.iter().enumerate() {
-                putf(&mut b, 352 + 8 * i, *v);
-            }
-            for i in 0..3 {
-                putf(&mut b, 376 + 8 * i, m[i][3]);
-            }
-        }
-        put32(&mut b, 348, 1);
-        for r in 0..3 {
-            for c in 0..4 {
-                putf(&mut b, 400 + 32 * r + 8 * c, m[r][c]);
-            }
-        }
-        put32(&mut b, 500, 2 | 8);
     }
+}
+
+/// A fresh header describing `source` (when it comes from another format): NIfTI-1 unless a
+/// size does not fit its 16-bit dims.
+fn new_header(source: &VolumeInfo) -> NiftiHeader {
+    let fresh = Fresh::of(source);
+    let (version, bytes) = if source.dims.iter().any(|&d| d > i16::MAX as usize) {
+        (2, nifti2_bytes(&fresh))
+    } else {
+        (1, nifti1_bytes(&fresh))
+    };
     NiftiHeader {
         version,
         endian: Endian::Little,
-        bytes: b,
+        bytes,
     }
+}
+
+/// A little-endian NIfTI-1 header, empty extension flag included (352 bytes).
+fn nifti1_bytes(f: &Fresh) -> Vec<u8> {
+    let [nx, ny, nz] = f.dims;
+    let m = f.m;
+    let mut b = vec![0u8; 352];
+    let put16 = |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
+    let put32 = |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+    let putf =
+        |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 4].copy_from_slice(&(v as f32).to_le_bytes());
+    put32(&mut b, 0, 348);
+    b[39] = 0; // dim_info
+    let dim = [3i16, nx as i16, ny as i16, nz as i16, 1, 1, 1, 1];
+    for (i, d) in dim.iter().enumerate() {
+        put16(&mut b, 40 + 2 * i, *d);
+    }
+    put16(&mut b, 70, code_from_dtype(f.dtype));
+    put16(&mut b, 72, (f.dtype.size() * 8) as i16);
+    for (i, p) in f.pixdim.iter().enumerate() {
+        putf(&mut b, 76 + 4 * i, *p);
+    }
+    putf(&mut b, 108, 352.0);
+    putf(&mut b, 112, f.slope);
+    putf(&mut b, 116, f.inter);
+    b[123] = 2 | 8; // mm, seconds
+    let descrip = b"isotopo";
+    b[148..148 + descrip.len()].copy_from_slice(descrip);
+    if let Some(q) = f.quatern {
+        put16(&mut b, 252, 1);
+        for (i, v) in q.iter().enumerate() {
+            putf(&mut b, 256 + 4 * i, *v);
+        }
+        for i in 0..3 {
+            putf(&mut b, 268 + 4 * i, m[i][3]);
+        }
+    }
+    put16(&mut b, 254, 1);
+    for r in 0..3 {
+        for c in 0..4 {
+            putf(&mut b, 280 + 16 * r + 4 * c, m[r][c]);
+        }
+    }
+    b[344..348].copy_from_slice(b"n+1\0");
+    b
+}
+
+/// A little-endian NIfTI-2 header, empty extension flag included (544 bytes).
+fn nifti2_bytes(f: &Fresh) -> Vec<u8> {
+    let [nx, ny, nz] = f.dims;
+    let m = f.m;
+    let mut b = vec![0u8; 544];
+    let put16 = |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
+    let put32 = |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+    let put64 = |b: &mut Vec<u8>, o: usize, v: i64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
+    let putf = |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
+    put32(&mut b, 0, 540);
+    b[4..12].copy_from_slice(b"n+2\0\r\n\x1a\n");
+    put16(&mut b, 12, code_from_dtype(f.dtype));
+    put16(&mut b, 14, (f.dtype.size() * 8) as i16);
+    let dim = [3i64, nx as i64, ny as i64, nz as i64, 1, 1, 1, 1];
+    for (i, d) in dim.iter().enumerate() {
+        put64(&mut b, 16 + 8 * i, *d);
+    }
+    for (i, p) in f.pixdim.iter().enumerate() {
+        putf(&mut b, 104 + 8 * i, *p);
+    }
+    put64(&mut b, 168, 544);
+    putf(&mut b, 176, f.slope);
+    putf(&mut b, 184, f.inter);
+    if let Some(q) = f.quatern {
+        put32(&mut b, 344, 1);
+        for (i, v) in q.iter().enumerate() {
+            putf(&mut b, 352 + 8 * i, *v);
+        }
+        for i in 0..3 {
+            putf(&mut b, 376 + 8 * i, m[i][3]);
+        }
+    }
+    put32(&mut b, 348, 1);
+    for r in 0..3 {
+        for c in 0..4 {
+            putf(&mut b, 400 + 32 * r + 8 * c, m[r][c]);
+        }
+    }
+    put32(&mut b, 500, 2 | 8);
+    b
 }
 
 pub(crate) struct NiftiWriter {
