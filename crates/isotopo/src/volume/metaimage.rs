@@ -3,8 +3,8 @@
 
 use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
 use super::{
-    Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling, SliceWriter,
-    VolumeInfo,
+    data_file_beside, Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling,
+    SliceWriter, VolumeInfo,
 };
 use crate::error::{Error, Result};
 use std::io::{BufRead, BufReader, Read};
@@ -51,7 +51,9 @@ fn truthy(s: &str) -> bool {
     matches!(s.to_ascii_lowercase().as_str(), "true" | "1" | "yes")
 }
 
-pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+/// Reads `Key = Value` lines up to ElementDataFile, the last field; also returns the header's
+/// length in bytes (where attached data starts).
+fn read_fields(path: &Path) -> Result<(Vec<(String, String)>, u64)> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
     let mut rd = BufReader::new(file).take(MAX_HEADER);
     let mut fields: Vec<(String, String)> = Vec::new();
@@ -87,24 +89,44 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             break;
         }
     }
-    let get = |k: &str| {
-        fields
+    Ok((fields, header_len))
+}
+
+/// Looks up header fields; keys are case-insensitive, the first occurrence counts.
+struct Fields<'a> {
+    path: &'a Path,
+    list: &'a [(String, String)],
+}
+
+impl<'a> Fields<'a> {
+    fn get(&self, k: &str) -> Option<&'a str> {
+        self.list
             .iter()
             .find(|(f, _)| f.eq_ignore_ascii_case(k))
             .map(|(_, v)| v.as_str())
-    };
-    let nums = |k: &str| -> Result<Option<Vec<f64>>> {
-        match get(k) {
+    }
+
+    /// The numbers of field `k`, if present.
+    fn nums(&self, k: &str) -> Result<Option<Vec<f64>>> {
+        match self.get(k) {
             None => Ok(None),
             Some(v) => v
                 .split_whitespace()
                 .map(|x| x.parse::<f64>())
                 .collect::<std::result::Result<Vec<_>, _>>()
                 .map(Some)
-                .map_err(|_| Error::input(path, format!("{k} = {v}"), format!("numbers for {k}"))),
+                .map_err(|_| {
+                    Error::input(self.path, format!("{k} = {v}"), format!("numbers for {k}"))
+                }),
         }
-    };
-    let ndims = nums("NDims")?
+    }
+}
+
+/// NDims (3 when absent) and DimSize, with a single channel per element.
+fn dims(f: &Fields) -> Result<(usize, [usize; 3])> {
+    let path = f.path;
+    let ndims = f
+        .nums("NDims")?
         .and_then(|v| v.first().copied())
         .unwrap_or(3.0) as usize;
     if !(1..=3).contains(&ndims) {
@@ -114,8 +136,9 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "a 3-D image",
         ));
     }
-    let size =
-        nums("DimSize")?.ok_or_else(|| Error::input(path, "no DimSize", "DimSize = NX NY NZ"))?;
+    let size = f
+        .nums("DimSize")?
+        .ok_or_else(|| Error::input(path, "no DimSize", "DimSize = NX NY NZ"))?;
     if size.len() != ndims || size.iter().any(|&s| s < 0.0 || s.fract() != 0.0) {
         return Err(Error::input(
             path,
@@ -127,7 +150,7 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
     for (i, s) in size.iter().enumerate() {
         dims[i] = *s as usize;
     }
-    if let Some(ch) = nums("ElementNumberOfChannels")? {
+    if let Some(ch) = f.nums("ElementNumberOfChannels")? {
         if ch.first().copied().unwrap_or(1.0) != 1.0 {
             return Err(Error::input(
                 path,
@@ -136,32 +159,38 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             ));
         }
     }
-    let et = get("ElementType").ok_or_else(|| {
+    Ok((ndims, dims))
+}
+
+fn sample_type(f: &Fields) -> Result<DType> {
+    let et = f.get("ElementType").ok_or_else(|| {
         Error::input(
-            path,
+            f.path,
             "no ElementType",
             "ElementType = MET_SHORT (or another MET_ type)",
         )
     })?;
-    let dtype = meta_dtype(et).ok_or_else(|| {
-        Error::input(path, format!("unsupported ElementType {et}"), "MET_UCHAR, MET_CHAR, MET_USHORT, MET_SHORT, MET_UINT, MET_INT, MET_FLOAT or MET_DOUBLE")
-    })?;
-    let msb = get("ElementByteOrderMSB")
-        .or_else(|| get("BinaryDataByteOrderMSB"))
-        .map(truthy)
-        .unwrap_or(false);
-    let endian = if msb { Endian::Big } else { Endian::Little };
-    let compressed = get("CompressedData").map(truthy).unwrap_or(false);
-    let spacing = nums("ElementSpacing")?
-        .or(nums("ElementSize")?)
+    meta_dtype(et).ok_or_else(|| {
+        Error::input(f.path, format!("unsupported ElementType {et}"), "MET_UCHAR, MET_CHAR, MET_USHORT, MET_SHORT, MET_UINT, MET_INT, MET_FLOAT or MET_DOUBLE")
+    })
+}
+
+/// Voxel-to-world map (RAS) from spacing, origin and direction matrix, each under any of the
+/// names ITK accepts (every name is parsed, so a malformed alternative is an error too).
+fn geometry(f: &Fields, ndims: usize) -> Result<Affine> {
+    let spacing = f
+        .nums("ElementSpacing")?
+        .or(f.nums("ElementSize")?)
         .unwrap_or(vec![1.0; ndims]);
-    let origin = nums("Offset")?
-        .or(nums("Origin")?)
-        .or(nums("Position")?)
+    let origin = f
+        .nums("Offset")?
+        .or(f.nums("Origin")?)
+        .or(f.nums("Position")?)
         .unwrap_or(vec![0.0; ndims]);
-    let matrix = nums("TransformMatrix")?
-        .or(nums("Rotation")?)
-        .or(nums("Orientation")?);
+    let matrix = f
+        .nums("TransformMatrix")?
+        .or(f.nums("Rotation")?)
+        .or(f.nums("Orientation")?);
     let mut dir = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     if let Some(m) = matrix {
         if m.len() == ndims * ndims && ndims == 3 {
@@ -178,51 +207,86 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
     let affine = Affine::from_parts(dir, sp, or).flip_xy();
     if !affine.is_valid() {
         return Err(Error::input(
-            path,
+            f.path,
             "a degenerate ElementSpacing or TransformMatrix",
             "an invertible voxel-to-world map",
         ));
     }
-    let df = get("ElementDataFile").unwrap_or("LOCAL");
-    let data_file = if df.eq_ignore_ascii_case("LOCAL") {
-        None
-    } else {
-        if df.starts_with("LIST") || df.contains('%') || df.contains(' ') {
-            return Err(Error::input(
-                path,
-                format!("ElementDataFile = {df} (several files)"),
-                "LOCAL or a single data file",
-            ));
-        }
-        let p = Path::new(df);
-        let full = if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            path.parent().unwrap_or(Path::new(".")).join(p)
-        };
-        if !full.exists() {
-            return Err(Error::input(
-                path,
-                format!("data file {} does not exist", full.display()),
-                "the data file named by ElementDataFile",
-            ));
-        }
-        Some(full)
-    };
-    let header_size = nums("HeaderSize")?
+    Ok(affine)
+}
+
+/// The file named by ElementDataFile, or `None` for LOCAL (data after the header).
+fn data_file(f: &Fields) -> Result<Option<PathBuf>> {
+    let df = f.get("ElementDataFile").unwrap_or("LOCAL");
+    if df.eq_ignore_ascii_case("LOCAL") {
+        return Ok(None);
+    }
+    if df.starts_with("LIST") || df.contains('%') || df.contains(' ') {
+        return Err(Error::input(
+            f.path,
+            format!("ElementDataFile = {df} (several files)"),
+            "LOCAL or a single data file",
+        ));
+    }
+    data_file_beside(f.path, df, "the data file named by ElementDataFile").map(Some)
+}
+
+/// Where the samples start: after the header (LOCAL), else HeaderSize bytes into the data file
+/// (-1: the samples end the file).
+fn data_location(
+    f: &Fields,
+    header_len: u64,
+    data_file: Option<&Path>,
+    compressed: bool,
+    endian: Endian,
+) -> Result<DataLocation> {
+    let header_size = f
+        .nums("HeaderSize")?
         .and_then(|v| v.first().copied())
         .unwrap_or(0.0);
-    let compression = if compressed {
-        Compression::Zlib
-    } else {
-        Compression::None
-    };
-    let (offset, from_end) = match &data_file {
+    let (offset, from_end) = match data_file {
         None => (header_len, false),
         Some(_) if header_size == -1.0 => (0, true),
         Some(_) => (header_size.max(0.0) as u64, false),
     };
-    let data_path = data_file.clone().unwrap_or_else(|| path.to_path_buf());
+    Ok(DataLocation {
+        path: data_file.unwrap_or(f.path).to_path_buf(),
+        offset,
+        compression: compression(compressed),
+        skip: 0,
+        from_end: from_end && !compressed,
+        endian,
+        exact_size: data_file.is_some() && !compressed && header_size == 0.0,
+        read_trailer: false,
+    })
+}
+
+fn compression(compressed: bool) -> Compression {
+    if compressed {
+        Compression::Zlib
+    } else {
+        Compression::None
+    }
+}
+
+pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+    let (fields, header_len) = read_fields(path)?;
+    let f = Fields {
+        path,
+        list: &fields,
+    };
+    let (ndims, dims) = dims(&f)?;
+    let dtype = sample_type(&f)?;
+    let msb = f
+        .get("ElementByteOrderMSB")
+        .or_else(|| f.get("BinaryDataByteOrderMSB"))
+        .map(truthy)
+        .unwrap_or(false);
+    let endian = if msb { Endian::Big } else { Endian::Little };
+    let compressed = f.get("CompressedData").map(truthy).unwrap_or(false);
+    let affine = geometry(&f, ndims)?;
+    let data_file = data_file(&f)?;
+    let loc = data_location(&f, header_len, data_file.as_deref(), compressed, endian)?;
     let info = VolumeInfo {
         path: path.to_path_buf(),
         format: Format::MetaImage,
@@ -231,21 +295,8 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         affine,
         scaling: Scaling::IDENTITY,
         endian,
-        compression,
-        header: FormatHeader::MetaImage(MetaHeader {
-            fields,
-            data_file: data_file.clone(),
-        }),
-    };
-    let loc = DataLocation {
-        path: data_path,
-        offset,
-        compression,
-        skip: 0,
-        from_end: from_end && !compressed,
-        endian,
-        exact_size: data_file.is_some() && !compressed && header_size == 0.0,
-        read_trailer: false,
+        compression: compression(compressed),
+        header: FormatHeader::MetaImage(MetaHeader { fields, data_file }),
     };
     StreamReader::new(info, loc)
 }

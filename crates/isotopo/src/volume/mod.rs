@@ -268,6 +268,25 @@ pub(crate) fn check_dims(path: &Path, dims: [usize; 3], dtype: DType) -> Result<
     Ok(())
 }
 
+/// A data file named in a detached header (`.nhdr`, `.mhd`), resolved against the header's folder
+/// unless absolute; `expected` says where it should be when it does not exist.
+pub(crate) fn data_file_beside(header: &Path, name: &str, expected: &str) -> Result<PathBuf> {
+    let p = Path::new(name);
+    let full = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        header.parent().unwrap_or(Path::new(".")).join(p)
+    };
+    if !full.exists() {
+        return Err(Error::input(
+            header,
+            format!("data file {} does not exist", full.display()),
+            expected,
+        ));
+    }
+    Ok(full)
+}
+
 /// Opens a volume for streaming. The format comes from the extension, else from the file's first
 /// bytes; headerless files need `options.raw_dims` and `options.raw_type`.
 pub fn open(path: &Path, options: &ReadOptions) -> Result<Box<dyn SliceReader>> {

@@ -216,17 +216,10 @@ fn is_gz(path: &Path) -> bool {
     path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
 }
 
-pub(crate) fn open(path: &Path) -> Result<StreamReader> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
-    let gz = is_gz(path);
-    let mut input: Box<dyn Read> = if gz {
-        Box::new(MultiGzDecoder::new(std::io::BufReader::new(file)))
-    } else {
-        Box::new(std::io::BufReader::new(file))
-    };
-    let mut head = vec![0u8; 540];
-    let n = read_up_to(&mut input, &mut head).map_err(|e| gz_error(path, gz, e))?;
-    head.truncate(n);
+/// The header's version and byte order, from the header-size field (348 or 540, either byte
+/// order) and the magic; `head` is the first (up to 540) bytes of the stream.
+fn version(path: &Path, head: &[u8]) -> Result<(u8, Endian)> {
+    let n = head.len();
     if n < 348 {
         return Err(Error::input(
             path,
@@ -244,14 +237,27 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             return Err(Error::input(path, format!("header size field {x}"), EXPECT));
         }
     };
-    let hsize = if version == 1 { 348 } else { 540 };
-    if n < hsize {
+    if n < header_size(version) {
         return Err(Error::input(
             path,
             format!("a NIfTI-{version} header cut off after {n} bytes"),
             EXPECT,
         ));
     }
+    check_magic(path, head, version)?;
+    Ok((version, endian))
+}
+
+fn header_size(version: u8) -> usize {
+    if version == 1 {
+        348
+    } else {
+        540
+    }
+}
+
+/// Single-file magic: `n+1` (NIfTI-1) or `n+2` (NIfTI-2); `ni1` is a .hdr/.img pair.
+fn check_magic(path: &Path, head: &[u8], version: u8) -> Result<()> {
     if version == 1 {
         let magic = &head[344..348];
         if magic == b"ni1\0" {
@@ -275,7 +281,11 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "NIfTI-2 magic \"n+2\"",
         ));
     }
-    let p = parse(&head, version, endian);
+    Ok(())
+}
+
+/// The three spatial sizes; further axes must have size 1.
+fn dims(path: &Path, p: &Parsed) -> Result<[usize; 3]> {
     let ndim = p.dim[0];
     if !(1..=7).contains(&ndim) {
         return Err(Error::input(
@@ -304,13 +314,21 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             ));
         }
     }
-    let dtype = dtype_from_code(p.datatype).ok_or_else(|| {
+    Ok(dims)
+}
+
+fn sample_type(path: &Path, p: &Parsed) -> Result<DType> {
+    dtype_from_code(p.datatype).ok_or_else(|| {
         Error::input(
             path,
             format!("unsupported sample type {}", code_name(p.datatype)),
             "uint8, int8, uint16, int16, uint32, int32, float32 or float64 samples",
         )
-    })?;
+    })
+}
+
+/// Where the samples start in the (decompressed) stream.
+fn vox_offset(path: &Path, p: &Parsed, version: u8) -> Result<u64> {
     let vox_offset = p.vox_offset;
     if !(vox_offset.is_finite() && vox_offset >= 0.0 && vox_offset <= (1u64 << 32) as f64) {
         return Err(Error::input(
@@ -320,15 +338,26 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         ));
     }
     // NIfTI allows vox_offset 0 in .hdr/.img pairs only; single files put data after the header.
-    let vox_offset = (vox_offset as u64).max(hsize as u64 + 4);
-    // `head` holds the first `n` bytes of the stream; keep exactly those before the samples.
+    Ok((vox_offset as u64).max(header_size(version) as u64 + 4))
+}
+
+/// The bytes before the samples (header, extension flag, extensions), kept for writing back.
+fn header_bytes(
+    path: &Path,
+    gz: bool,
+    head: Vec<u8>,
+    input: &mut dyn Read,
+    vox_offset: u64,
+) -> Result<Vec<u8>> {
+    // `head` holds the first bytes of the stream (`input` the rest); keep exactly those before
+    // the samples.
     let mut bytes = head;
     if (bytes.len() as u64) >= vox_offset {
         bytes.truncate(vox_offset as usize);
     } else {
         let want = vox_offset as usize - bytes.len();
         let mut rest = vec![0u8; want];
-        let got = read_up_to(&mut input, &mut rest).map_err(|e| gz_error(path, gz, e))?;
+        let got = read_up_to(input, &mut rest).map_err(|e| gz_error(path, gz, e))?;
         if got < want {
             return Err(Error::input(
                 path,
@@ -338,13 +367,42 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         }
         bytes.extend_from_slice(&rest);
     }
-    let scaling = if p.scl_slope.is_finite() && p.scl_slope != 0.0 && p.scl_inter.is_finite() {
+    Ok(bytes)
+}
+
+/// `scl_slope`/`scl_inter`; a slope of 0 or NaN (or a non-finite intercept) means none.
+fn scaling(p: &Parsed) -> Scaling {
+    if p.scl_slope.is_finite() && p.scl_slope != 0.0 && p.scl_inter.is_finite() {
         Scaling {
             slope: p.scl_slope,
             inter: p.scl_inter,
         }
     } else {
         Scaling::IDENTITY
+    }
+}
+
+pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
+    let gz = is_gz(path);
+    let mut input: Box<dyn Read> = if gz {
+        Box::new(MultiGzDecoder::new(std::io::BufReader::new(file)))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    };
+    let mut head = vec![0u8; 540];
+    let n = read_up_to(&mut input, &mut head).map_err(|e| gz_error(path, gz, e))?;
+    head.truncate(n);
+    let (version, endian) = version(path, &head)?;
+    let p = parse(&head, version, endian);
+    let dims = dims(path, &p)?;
+    let dtype = sample_type(path, &p)?;
+    let vox_offset = vox_offset(path, &p, version)?;
+    let bytes = header_bytes(path, gz, head, &mut input, vox_offset)?;
+    let compression = if gz {
+        Compression::Gzip
+    } else {
+        Compression::None
     };
     let info = VolumeInfo {
         path: path.to_path_buf(),
@@ -352,23 +410,20 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         dims,
         dtype,
         affine: best_affine(&p, dims),
-        scaling,
+        scaling: scaling(&p),
         endian,
-        compression: if gz {
-            Compression::Gzip
-        } else {
-            Compression::None
-        },
+        compression,
         header: FormatHeader::Nifti(NiftiHeader {
             version,
             endian,
             bytes,
         }),
     };
+    // A gzip stream cannot seek: the header bytes are skipped after decompressing.
     let loc = DataLocation {
         path: path.to_path_buf(),
         offset: if gz { 0 } else { vox_offset },
-        compression: info.compression,
+        compression,
         skip: if gz { vox_offset } else { 0 },
         from_end: false,
         endian,
@@ -464,120 +519,144 @@ fn quaternion(dir: [[f64; 3]; 3]) -> Option<([f64; 3], f64)> {
     Some(([b, c, d], qfac))
 }
 
-/// A fresh header describing `source` (when it comes from another format).
-fn new_header(source: &VolumeInfo) -> NiftiHeader {
-    let [nx, ny, nz] = source.dims;
-    let version = if source.dims.iter().any(|&d| d > i16::MAX as usize) {
-        2
-    } else {
-        1
-    };
-    let dtype = source.dtype;
-    let spacing = source.affine.spacing();
-    let quat = quaternion(source.affine.direction());
-    let qfac = quat.map(|q| q.1).unwrap_or(1.0);
-    let slope = if source.scaling.is_identity() {
-        0.0
-    } else {
-        source.scaling.slope
-    };
-    let inter = if source.scaling.is_identity() {
-        0.0
-    } else {
-        source.scaling.inter
-    };
-    let m = source.affine.m;
-    let mut b = Vec::new();
-    if version == 1 {
-        b.resize(352, 0);
-        let put16 =
-            |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
-        let put32 =
-            |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
-        let putf = |b: &mut Vec<u8>, o: usize, v: f64| {
-            b[o..o + 4].copy_from_slice(&(v as f32).to_le_bytes())
+/// What a fresh header states about a volume, in either version.
+struct Fresh {
+    dims: [usize; 3],
+    dtype: DType,
+    /// qfac, then the voxel sizes.
+    pixdim: [f64; 8],
+    slope: f64,
+    inter: f64,
+    /// Quaternion (b, c, d) when the direction matrix is a rotation (then a qform is written).
+    quatern: Option<[f64; 3]>,
+    /// The affine, written as the sform (and its last column as the qform's offset).
+    m: [[f64; 4]; 3],
+}
+
+impl Fresh {
+    fn of(source: &VolumeInfo) -> Fresh {
+        let spacing = source.affine.spacing();
+        let quat = quaternion(source.affine.direction());
+        let qfac = quat.map(|q| q.1).unwrap_or(1.0);
+        // A slope of 0 means no scaling.
+        let (slope, inter) = if source.scaling.is_identity() {
+            (0.0, 0.0)
+        } else {
+            (source.scaling.slope, source.scaling.inter)
         };
-        put32(&mut b, 0, 348);
-        b[39] = 0; // dim_info
-        let dim = [3i16, nx as i16, ny as i16, nz as i16, 1, 1, 1, 1];
-        for (i, d) in dim.iter().enumerate() {
-            put16(&mut b, 40 + 2 * i, *d);
+        Fresh {
+            dims: source.dims,
+            dtype: source.dtype,
+            pixdim: [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0],
+            slope,
+            inter,
+            quatern: quat.map(|q| q.0),
+            m: source.affine.m,
         }
-        put16(&mut b, 70, code_from_dtype(dtype));
-        put16(&mut b, 72, (dtype.size() * 8) as i16);
-        let pixdim = [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0];
-        for (i, p) in pixdim.iter().enumerate() {
-            putf(&mut b, 76 + 4 * i, *p);
-        }
-        putf(&mut b, 108, 352.0);
-        putf(&mut b, 112, slope);
-        putf(&mut b, 116, inter);
-        b[123] = 2 | 8; // mm, seconds
-        let descrip = b"isotopo";
-        b[148..148 + descrip.len()].copy_from_slice(descrip);
-        if let Some((q, _)) = quat {
-            put16(&mut b, 252, 1);
-            for (i, v) in q.iter().enumerate() {
-                putf(&mut b, 256 + 4 * i, *v);
-            }
-            for i in 0..3 {
-                putf(&mut b, 268 + 4 * i, m[i][3]);
-            }
-        }
-        put16(&mut b, 254, 1);
-        for r in 0..3 {
-            for c in 0..4 {
-                putf(&mut b, 280 + 16 * r + 4 * c, m[r][c]);
-            }
-        }
-        b[344..348].copy_from_slice(b"n+1\0");
-    } else {
-        b.resize(544, 0);
-        let put16 =
-            |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
-        let put32 =
-            |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
-        let put64 =
-            |b: &mut Vec<u8>, o: usize, v: i64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
-        let putf =
-            |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
-        put32(&mut b, 0, 540);
-        b[4..12].copy_from_slice(b"n+2\0\r\n\x1a\n");
-        put16(&mut b, 12, code_from_dtype(dtype));
-        put16(&mut b, 14, (dtype.size() * 8) as i16);
-        let dim = [3i64, nx as i64, ny as i64, nz as i64, 1, 1, 1, 1];
-        for (i, d) in dim.iter().enumerate() {
-            put64(&mut b, 16 + 8 * i, *d);
-        }
-        let pixdim = [qfac, spacing[0], spacing[1], spacing[2], 1.0, 1.0, 1.0, 1.0];
-        for (i, p) in pixdim.iter().enumerate() {
-            putf(&mut b, 104 + 8 * i, *p);
-        }
-        put64(&mut b, 168, 544);
-        putf(&mut b, 176, slope);
-        putf(&mut b, 184, inter);
-        if let Some((q, _)) = quat {
-            put32(&mut b, 344, 1);
-            for (i, v) in q.iter().enumerate() {
-                putf(&mut b, 352 + 8 * i, *v);
-            }
-            for i in 0..3 {
-                putf(&mut b, 376 + 8 * i, m[i][3]);
-            }
-        }
-        put32(&mut b, 348, 1);
-        for r in 0..3 {
-            for c in 0..4 {
-                putf(&mut b, 400 + 32 * r + 8 * c, m[r][c]);
-            }
-        }
-        put32(&mut b, 500, 2 | 8);
     }
+}
+
+/// A fresh header describing `source` (when it comes from another format): NIfTI-1 unless a
+/// size does not fit its 16-bit dims.
+fn new_header(source: &VolumeInfo) -> NiftiHeader {
+    let fresh = Fresh::of(source);
+    let (version, bytes) = if source.dims.iter().any(|&d| d > i16::MAX as usize) {
+        (2, nifti2_bytes(&fresh))
+    } else {
+        (1, nifti1_bytes(&fresh))
+    };
     NiftiHeader {
         version,
         endian: Endian::Little,
-        bytes: b,
+        bytes,
     }
+}
+
+/// A little-endian NIfTI-1 header, empty extension flag included (352 bytes).
+fn nifti1_bytes(f: &Fresh) -> Vec<u8> {
+    let [nx, ny, nz] = f.dims;
+    let m = f.m;
+    let mut b = vec![0u8; 352];
+    let put16 = |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
+    let put32 = |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+    let putf =
+        |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 4].copy_from_slice(&(v as f32).to_le_bytes());
+    put32(&mut b, 0, 348);
+    b[39] = 0; // dim_info
+    let dim = [3i16, nx as i16, ny as i16, nz as i16, 1, 1, 1, 1];
+    for (i, d) in dim.iter().enumerate() {
+        put16(&mut b, 40 + 2 * i, *d);
+    }
+    put16(&mut b, 70, code_from_dtype(f.dtype));
+    put16(&mut b, 72, (f.dtype.size() * 8) as i16);
+    for (i, p) in f.pixdim.iter().enumerate() {
+        putf(&mut b, 76 + 4 * i, *p);
+    }
+    putf(&mut b, 108, 352.0);
+    putf(&mut b, 112, f.slope);
+    putf(&mut b, 116, f.inter);
+    b[123] = 2 | 8; // mm, seconds
+    let descrip = b"isotopo";
+    b[148..148 + descrip.len()].copy_from_slice(descrip);
+    if let Some(q) = f.quatern {
+        put16(&mut b, 252, 1);
+        for (i, v) in q.iter().enumerate() {
+            putf(&mut b, 256 + 4 * i, *v);
+        }
+        for i in 0..3 {
+            putf(&mut b, 268 + 4 * i, m[i][3]);
+        }
+    }
+    put16(&mut b, 254, 1);
+    for r in 0..3 {
+        for c in 0..4 {
+            putf(&mut b, 280 + 16 * r + 4 * c, m[r][c]);
+        }
+    }
+    b[344..348].copy_from_slice(b"n+1\0");
+    b
+}
+
+/// A little-endian NIfTI-2 header, empty extension flag included (544 bytes).
+fn nifti2_bytes(f: &Fresh) -> Vec<u8> {
+    let [nx, ny, nz] = f.dims;
+    let m = f.m;
+    let mut b = vec![0u8; 544];
+    let put16 = |b: &mut Vec<u8>, o: usize, v: i16| b[o..o + 2].copy_from_slice(&v.to_le_bytes());
+    let put32 = |b: &mut Vec<u8>, o: usize, v: i32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+    let put64 = |b: &mut Vec<u8>, o: usize, v: i64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
+    let putf = |b: &mut Vec<u8>, o: usize, v: f64| b[o..o + 8].copy_from_slice(&v.to_le_bytes());
+    put32(&mut b, 0, 540);
+    b[4..12].copy_from_slice(b"n+2\0\r\n\x1a\n");
+    put16(&mut b, 12, code_from_dtype(f.dtype));
+    put16(&mut b, 14, (f.dtype.size() * 8) as i16);
+    let dim = [3i64, nx as i64, ny as i64, nz as i64, 1, 1, 1, 1];
+    for (i, d) in dim.iter().enumerate() {
+        put64(&mut b, 16 + 8 * i, *d);
+    }
+    for (i, p) in f.pixdim.iter().enumerate() {
+        putf(&mut b, 104 + 8 * i, *p);
+    }
+    put64(&mut b, 168, 544);
+    putf(&mut b, 176, f.slope);
+    putf(&mut b, 184, f.inter);
+    if let Some(q) = f.quatern {
+        put32(&mut b, 344, 1);
+        for (i, v) in q.iter().enumerate() {
+            putf(&mut b, 352 + 8 * i, *v);
+        }
+        for i in 0..3 {
+            putf(&mut b, 376 + 8 * i, m[i][3]);
+        }
+    }
+    put32(&mut b, 348, 1);
+    for r in 0..3 {
+        for c in 0..4 {
+            putf(&mut b, 400 + 32 * r + 8 * c, m[r][c]);
+        }
+    }
+    put32(&mut b, 500, 2 | 8);
+    b
 }
 
 pub(crate) struct NiftiWriter {

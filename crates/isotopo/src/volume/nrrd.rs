@@ -5,8 +5,8 @@
 
 use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
 use super::{
-    Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling, SliceWriter,
-    VolumeInfo,
+    data_file_beside, Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling,
+    SliceWriter, VolumeInfo,
 };
 use crate::error::{Error, Result};
 use std::io::{BufRead, BufReader, Read};
@@ -102,7 +102,33 @@ fn parse_numbers<T: std::str::FromStr>(path: &Path, field: &str, s: &str) -> Res
         .collect()
 }
 
-pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+/// The header as read: the magic line, the lines after it, their `field: value` pairs (field
+/// names lower-cased) and the header's length in bytes (where attached data starts).
+struct RawHeader {
+    magic: String,
+    lines: Vec<String>,
+    fields: Vec<(String, String)>,
+    len: u64,
+}
+
+impl RawHeader {
+    /// The first value of `field`.
+    fn get(&self, field: &str) -> Option<&str> {
+        self.fields
+            .iter()
+            .find(|(f, _)| f == field)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// The first value of `field`, else of its other spelling.
+    fn get2(&self, field: &str, other: &str) -> Option<&str> {
+        self.get(field).or_else(|| self.get(other))
+    }
+}
+
+/// Reads the magic line and the header lines up to the blank line (or the end of a detached
+/// header), at most [`MAX_HEADER`] bytes.
+fn read_header(path: &Path) -> Result<RawHeader> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, "opening", e))?;
     let mut rd = BufReader::new(file).take(MAX_HEADER);
     let mut magic = String::new();
@@ -116,7 +142,7 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "a NRRD magic line like NRRD0004",
         ));
     }
-    let mut header_len = magic.len() as u64 + 1;
+    let mut len = magic.len() as u64 + 1;
     let mut lines = Vec::new();
     let mut fields: Vec<(String, String)> = Vec::new();
     loop {
@@ -124,7 +150,7 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         let n = rd
             .read_until(b'\n', &mut raw)
             .map_err(|e| Error::io(path, "reading", e))?;
-        header_len += n as u64;
+        len += n as u64;
         if n == 0 {
             break; // detached header without a final blank line
         }
@@ -134,19 +160,12 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
         if line.is_empty() {
             break;
         }
+        // Comments and `key:=value` pairs are kept as lines but are not fields.
         if !line.starts_with('#') && !line.contains(":=") {
-            if let Some((k, v)) = line.split_once(':') {
-                fields.push((k.trim().to_ascii_lowercase(), v.trim().to_string()));
-            } else {
-                return Err(Error::input(
-                    path,
-                    format!("header line {line:?}"),
-                    "\"field: value\" lines",
-                ));
-            }
+            fields.push(parse_field(path, &line)?);
         }
         lines.push(line);
-        if header_len >= MAX_HEADER {
+        if len >= MAX_HEADER {
             return Err(Error::input(
                 path,
                 "a header longer than 1 MiB with no blank line",
@@ -154,31 +173,83 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             ));
         }
     }
-    let get = |k: &str| fields.iter().find(|(f, _)| f == k).map(|(_, v)| v.as_str());
-    let get2 = |a: &str, b: &str| get(a).or_else(|| get(b));
+    Ok(RawHeader {
+        magic,
+        lines,
+        fields,
+        len,
+    })
+}
 
-    let type_s = get("type").ok_or_else(|| {
+/// A `field: value` line as (lower-cased field, value).
+fn parse_field(path: &Path, line: &str) -> Result<(String, String)> {
+    match line.split_once(':') {
+        Some((k, v)) => Ok((k.trim().to_ascii_lowercase(), v.trim().to_string())),
+        None => Err(Error::input(
+            path,
+            format!("header line {line:?}"),
+            "\"field: value\" lines",
+        )),
+    }
+}
+
+/// How the samples are laid out: their type, the spatial axes and how the bytes are stored.
+struct Layout {
+    dtype: DType,
+    /// Index of the first spatial axis (1 after a leading axis of size 1).
+    spatial_from: usize,
+    /// Number of spatial axes (1 to 3).
+    spatial: usize,
+    dims: [usize; 3],
+    compression: Compression,
+    endian: Endian,
+}
+
+/// Checks type, dimension, sizes, encoding and endian, in that order.
+fn layout(path: &Path, h: &RawHeader) -> Result<Layout> {
+    let dtype = sample_type(path, h)?;
+    let (spatial_from, spatial, dims) = spatial_axes(path, h)?;
+    let compression = encoding(path, h)?;
+    let endian = byte_order(path, h, dtype)?;
+    Ok(Layout {
+        dtype,
+        spatial_from,
+        spatial,
+        dims,
+        compression,
+        endian,
+    })
+}
+
+fn sample_type(path: &Path, h: &RawHeader) -> Result<DType> {
+    let type_s = h.get("type").ok_or_else(|| {
         Error::input(
             path,
             "no \"type\" field",
             "a NRRD header with type, dimension, sizes, encoding",
         )
     })?;
-    let dtype = nrrd_dtype(type_s).ok_or_else(|| {
+    nrrd_dtype(type_s).ok_or_else(|| {
         Error::input(
             path,
             format!("unsupported sample type \"{type_s}\""),
             "uchar, signed char, short, ushort, int, uint, float or double samples",
         )
-    })?;
-    let dimension: usize = get("dimension")
+    })
+}
+
+/// The first spatial axis, the number of spatial axes and the dims (1 for missing axes).
+fn spatial_axes(path: &Path, h: &RawHeader) -> Result<(usize, usize, [usize; 3])> {
+    let dimension: usize = h
+        .get("dimension")
         .ok_or_else(|| Error::input(path, "no \"dimension\" field", "dimension: 3"))?
         .parse()
         .map_err(|_| Error::input(path, "a non-numeric dimension", "dimension: 3"))?;
     let sizes: Vec<u64> = parse_numbers(
         path,
         "sizes",
-        get("sizes").ok_or_else(|| Error::input(path, "no \"sizes\" field", "sizes: NX NY NZ"))?,
+        h.get("sizes")
+            .ok_or_else(|| Error::input(path, "no \"sizes\" field", "sizes: NX NY NZ"))?,
     )?;
     if sizes.len() != dimension {
         return Err(Error::input(
@@ -204,76 +275,53 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
     for (i, &s) in sizes[spatial_from..].iter().enumerate() {
         dims[i] = usize::try_from(s).unwrap_or(usize::MAX);
     }
-    let encoding = get("encoding")
+    Ok((spatial_from, dimension - spatial_from, dims))
+}
+
+fn encoding(path: &Path, h: &RawHeader) -> Result<Compression> {
+    let encoding = h
+        .get("encoding")
         .ok_or_else(|| Error::input(path, "no \"encoding\" field", "encoding: raw or gzip"))?;
-    let compression = match encoding {
-        "raw" => Compression::None,
-        "gzip" | "gz" => Compression::Gzip,
-        other => {
-            return Err(Error::input(
-                path,
-                format!("unsupported encoding \"{other}\""),
-                "encoding raw or gzip (re-save with pynrrd or unu)",
-            ));
-        }
-    };
-    let endian = match get("endian") {
-        Some("little") => Endian::Little,
-        Some("big") => Endian::Big,
-        Some(e) => {
-            return Err(Error::input(
-                path,
-                format!("endian: {e}"),
-                "endian: little or big",
-            ))
-        }
-        None if dtype.size() == 1 => Endian::Little,
-        None => {
-            return Err(Error::input(
-                path,
-                "no \"endian\" field for multi-byte samples",
-                "endian: little or big",
-            ))
-        }
-    };
-    // Geometry.
-    let space = get("space").unwrap_or("").to_ascii_lowercase();
+    match encoding {
+        "raw" => Ok(Compression::None),
+        "gzip" | "gz" => Ok(Compression::Gzip),
+        other => Err(Error::input(
+            path,
+            format!("unsupported encoding \"{other}\""),
+            "encoding raw or gzip (re-save with pynrrd or unu)",
+        )),
+    }
+}
+
+/// The `endian` field; only single-byte samples may go without it.
+fn byte_order(path: &Path, h: &RawHeader, dtype: DType) -> Result<Endian> {
+    match h.get("endian") {
+        Some("little") => Ok(Endian::Little),
+        Some("big") => Ok(Endian::Big),
+        Some(e) => Err(Error::input(
+            path,
+            format!("endian: {e}"),
+            "endian: little or big",
+        )),
+        None if dtype.size() == 1 => Ok(Endian::Little),
+        None => Err(Error::input(
+            path,
+            "no \"endian\" field for multi-byte samples",
+            "endian: little or big",
+        )),
+    }
+}
+
+/// Voxel-to-world map from `space directions` + `space origin`, else from `spacings`, converted
+/// to RAS from an LPS or LAS space.
+fn geometry(path: &Path, h: &RawHeader, layout: &Layout) -> Result<Affine> {
+    let space = h.get("space").unwrap_or("").to_ascii_lowercase();
     let mut affine = Affine::IDENTITY;
-    if let Some(dirs) = get("space directions") {
-        let v = parse_vectors(path, dirs)?;
-        let v: Vec<Vec<f64>> = v.into_iter().flatten().collect();
-        if v.len() != dimension - spatial_from || v.iter().any(|x| x.len() != 3) {
-            return Err(Error::input(
-                path,
-                format!("space directions \"{dirs}\""),
-                "one 3-vector per spatial axis",
-            ));
-        }
-        for (c, vec) in v.iter().enumerate() {
-            for r in 0..3 {
-                affine.m[r][c] = vec[r];
-            }
-        }
-        if let Some(o) = get("space origin") {
-            let o = parse_vectors(path, o)?;
-            match o.first() {
-                Some(Some(v)) if v.len() == 3 => {
-                    for r in 0..3 {
-                        affine.m[r][3] = v[r];
-                    }
-                }
-                _ => {
-                    return Err(Error::input(
-                        path,
-                        "space origin without 3 numbers",
-                        "space origin: (x,y,z)",
-                    ))
-                }
-            }
-        }
-    } else if let Some(sp) = get("spacings") {
+    if let Some(dirs) = h.get("space directions") {
+        affine = space_directions(path, h, dirs, layout.spatial)?;
+    } else if let Some(sp) = h.get("spacings") {
         let sp: Vec<String> = sp.split_whitespace().map(String::from).collect();
-        for (c, s) in sp.iter().skip(spatial_from).take(3).enumerate() {
+        for (c, s) in sp.iter().skip(layout.spatial_from).take(3).enumerate() {
             let v: f64 = s.parse().unwrap_or(f64::NAN);
             affine.m[c][c] = if v.is_finite() && v != 0.0 { v } else { 1.0 };
         }
@@ -294,41 +342,81 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "an invertible voxel-to-world map",
         ));
     }
-    let byte_skip: i64 = get2("byte skip", "byteskip")
-        .map(|s| s.parse().unwrap_or(0))
-        .unwrap_or(0);
-    let line_skip: u64 = get2("line skip", "lineskip")
-        .map(|s| s.parse().unwrap_or(0))
-        .unwrap_or(0);
-    // Data location.
-    let data_file = match get2("data file", "datafile") {
-        Some(df) => {
-            if df.starts_with("LIST") || df.contains('%') {
-                return Err(Error::input(
-                    path,
-                    format!("data file \"{df}\" (several files)"),
-                    "a single detached data file",
-                ));
-            }
-            let p = Path::new(df);
-            let full = if p.is_absolute() {
-                p.to_path_buf()
-            } else {
-                path.parent().unwrap_or(Path::new(".")).join(p)
-            };
-            if !full.exists() {
-                return Err(Error::input(
-                    path,
-                    format!("data file {} does not exist", full.display()),
-                    "the detached data file beside the header",
-                ));
-            }
-            Some(full)
+    Ok(affine)
+}
+
+/// The affine (in the header's space) of `space directions` (one 3-vector per spatial axis,
+/// `none` for the others) and the optional `space origin`.
+fn space_directions(path: &Path, h: &RawHeader, dirs: &str, spatial: usize) -> Result<Affine> {
+    let mut affine = Affine::IDENTITY;
+    let v = parse_vectors(path, dirs)?;
+    let v: Vec<Vec<f64>> = v.into_iter().flatten().collect();
+    if v.len() != spatial || v.iter().any(|x| x.len() != 3) {
+        return Err(Error::input(
+            path,
+            format!("space directions \"{dirs}\""),
+            "one 3-vector per spatial axis",
+        ));
+    }
+    for (c, vec) in v.iter().enumerate() {
+        for r in 0..3 {
+            affine.m[r][c] = vec[r];
         }
-        None => None,
+    }
+    if let Some(o) = h.get("space origin") {
+        let o = parse_vectors(path, o)?;
+        match o.first() {
+            Some(Some(v)) if v.len() == 3 => {
+                for r in 0..3 {
+                    affine.m[r][3] = v[r];
+                }
+            }
+            _ => {
+                return Err(Error::input(
+                    path,
+                    "space origin without 3 numbers",
+                    "space origin: (x,y,z)",
+                ))
+            }
+        }
+    }
+    Ok(affine)
+}
+
+/// The detached data file (`data file`), if any; file lists are not supported.
+fn data_file(path: &Path, h: &RawHeader) -> Result<Option<PathBuf>> {
+    let Some(df) = h.get2("data file", "datafile") else {
+        return Ok(None);
     };
-    let data_path = data_file.clone().unwrap_or_else(|| path.to_path_buf());
-    let mut offset = if data_file.is_some() { 0 } else { header_len };
+    if df.starts_with("LIST") || df.contains('%') {
+        return Err(Error::input(
+            path,
+            format!("data file \"{df}\" (several files)"),
+            "a single detached data file",
+        ));
+    }
+    data_file_beside(path, df, "the detached data file beside the header").map(Some)
+}
+
+/// Where the samples start: after the header (attached) or at the start of the data file, then
+/// past `line skip` lines and `byte skip` bytes (-1: the samples end the file).
+fn data_location(
+    path: &Path,
+    h: &RawHeader,
+    layout: &Layout,
+    data_file: Option<&Path>,
+) -> Result<DataLocation> {
+    let compression = layout.compression;
+    let byte_skip: i64 = h
+        .get2("byte skip", "byteskip")
+        .map(|s| s.parse().unwrap_or(0))
+        .unwrap_or(0);
+    let line_skip: u64 = h
+        .get2("line skip", "lineskip")
+        .map(|s| s.parse().unwrap_or(0))
+        .unwrap_or(0);
+    let data_path = data_file.unwrap_or(path).to_path_buf();
+    let mut offset = if data_file.is_some() { 0 } else { h.len };
     if line_skip > 0 {
         if compression != Compression::None {
             return Err(Error::input(
@@ -337,17 +425,7 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
                 "line skip with raw encoding only",
             ));
         }
-        let f = std::fs::File::open(&data_path).map_err(|e| Error::io(&data_path, "opening", e))?;
-        let mut r = BufReader::new(f);
-        use std::io::Seek;
-        r.seek(std::io::SeekFrom::Start(offset))
-            .map_err(|e| Error::io(&data_path, "seeking in", e))?;
-        for _ in 0..line_skip {
-            let mut l = Vec::new();
-            offset += r
-                .read_until(b'\n', &mut l)
-                .map_err(|e| Error::io(&data_path, "reading", e))? as u64;
-        }
+        offset = skip_lines(&data_path, offset, line_skip)?;
     }
     let from_end = byte_skip == -1;
     if from_end && compression != Compression::None {
@@ -357,37 +435,62 @@ pub(crate) fn open(path: &Path) -> Result<StreamReader> {
             "byte skip -1 only with raw encoding",
         ));
     }
+    // Raw data skips bytes in the file, compressed data in the decompressed stream.
     let (offset, skip) = match compression {
         Compression::None => (offset + byte_skip.max(0) as u64, 0),
         _ => (offset, byte_skip.max(0) as u64),
     };
-    let info = VolumeInfo {
-        path: path.to_path_buf(),
-        format: Format::Nrrd,
-        dims,
-        dtype,
-        affine,
-        scaling: Scaling::IDENTITY,
-        endian,
-        compression,
-        header: FormatHeader::Nrrd(NrrdHeader {
-            magic,
-            lines,
-            data_file: data_file.clone(),
-        }),
-    };
-    let loc = DataLocation {
+    Ok(DataLocation {
         path: data_path,
         offset,
         compression,
         skip,
         from_end,
-        endian,
+        endian: layout.endian,
         exact_size: data_file.is_some()
             && compression == Compression::None
             && byte_skip == 0
             && line_skip == 0,
         read_trailer: false,
+    })
+}
+
+/// The offset after `count` more lines of `data_path`, from `offset`.
+fn skip_lines(data_path: &Path, mut offset: u64, count: u64) -> Result<u64> {
+    use std::io::Seek;
+    let f = std::fs::File::open(data_path).map_err(|e| Error::io(data_path, "opening", e))?;
+    let mut r = BufReader::new(f);
+    r.seek(std::io::SeekFrom::Start(offset))
+        .map_err(|e| Error::io(data_path, "seeking in", e))?;
+    for _ in 0..count {
+        let mut l = Vec::new();
+        offset += r
+            .read_until(b'\n', &mut l)
+            .map_err(|e| Error::io(data_path, "reading", e))? as u64;
+    }
+    Ok(offset)
+}
+
+pub(crate) fn open(path: &Path) -> Result<StreamReader> {
+    let header = read_header(path)?;
+    let layout = layout(path, &header)?;
+    let affine = geometry(path, &header, &layout)?;
+    let data_file = data_file(path, &header)?;
+    let loc = data_location(path, &header, &layout, data_file.as_deref())?;
+    let info = VolumeInfo {
+        path: path.to_path_buf(),
+        format: Format::Nrrd,
+        dims: layout.dims,
+        dtype: layout.dtype,
+        affine,
+        scaling: Scaling::IDENTITY,
+        endian: layout.endian,
+        compression: layout.compression,
+        header: FormatHeader::Nrrd(NrrdHeader {
+            magic: header.magic,
+            lines: header.lines,
+            data_file,
+        }),
     };
     StreamReader::new(info, loc)
 }

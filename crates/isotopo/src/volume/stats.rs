@@ -1,7 +1,7 @@
 //! Value statistics for `isotopo info`: range, quantiles, a histogram, NaN/Inf counts and a
 //! suggested isovalue (Otsu's threshold).
 
-use super::{DType, Sample, Samples, SliceReader};
+use super::{DType, Sample, Samples, Scaling, SliceReader};
 use crate::error::Result;
 use crate::progress::Progress;
 use crate::with_samples;
@@ -45,117 +45,196 @@ impl Fine {
     }
 }
 
-pub fn compute(reader: &mut dyn SliceReader, progress: &dyn Progress) -> Result<Stats> {
-    let info = reader.info().clone();
-    let scaling = info.scaling;
-    let nz = info.nz();
-    let exact = matches!(info.dtype, DType::U8 | DType::I8 | DType::U16 | DType::I16);
-    let mut slice = Samples::new(info.dtype);
-    let (mut nan, mut pinf, mut ninf, mut n) = (0u64, 0u64, 0u64, 0u64);
-    let (mut min, mut max, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    // Exact integer histograms are indexed by raw value.
-    let (raw_lo, raw_n) = match info.dtype {
+/// Count, sum and range of the finite values seen so far, and counts of the others.
+struct Totals {
+    nan: u64,
+    pos_inf: u64,
+    neg_inf: u64,
+    n: u64,
+    min: f64,
+    max: f64,
+    sum: f64,
+}
+
+impl Totals {
+    fn new() -> Totals {
+        Totals {
+            nan: 0,
+            pos_inf: 0,
+            neg_inf: 0,
+            n: 0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+            sum: 0.0,
+        }
+    }
+
+    /// One value, whatever it is.
+    #[inline]
+    fn add(&mut self, x: f64) {
+        if x.is_nan() {
+            self.nan += 1;
+        } else if x == f64::INFINITY {
+            self.pos_inf += 1;
+        } else if x == f64::NEG_INFINITY {
+            self.neg_inf += 1;
+        } else {
+            self.n += 1;
+            self.sum += x;
+            self.min = self.min.min(x);
+            self.max = self.max.max(x);
+        }
+    }
+
+    /// `count` copies of the value `v` (exact histograms).
+    fn add_copies(&mut self, v: f64, count: u64) {
+        self.n += count;
+        self.sum += v * count as f64;
+        self.min = self.min.min(v);
+        self.max = self.max.max(v);
+    }
+}
+
+/// Exact integer histograms are indexed by raw value: the first raw value and how many there are
+/// (none for other types).
+fn raw_range(dtype: DType) -> (i64, usize) {
+    match dtype {
         DType::U8 => (0i64, 256usize),
         DType::I8 => (-128, 256),
         DType::U16 => (0, 65536),
         DType::I16 => (-32768, 65536),
         _ => (0, 0),
-    };
+    }
+}
+
+/// The one pass over 8/16-bit integers: how many samples have each raw value.
+fn count_raw(
+    reader: &mut dyn SliceReader,
+    slice: &mut Samples,
+    (raw_lo, raw_n): (i64, usize),
+    progress: &dyn Progress,
+) -> Result<Vec<u64>> {
     let mut raw_counts = vec![0u64; raw_n];
-    progress.start("statistics", nz as u64 * if exact { 1 } else { 2 });
-    for _ in 0..nz {
-        reader.read_slice(&mut slice)?;
-        if exact {
-            with_samples!(&slice, v => {
-                for &x in v.iter() {
-                    raw_counts[(x.to_f64() as i64 - raw_lo) as usize] += 1;
-                }
-            });
-        } else {
-            with_samples!(&slice, v => {
-                for &x in v.iter() {
-                    let x = scaling.apply(x.to_f64());
-                    if x.is_nan() {
-                        nan += 1;
-                    } else if x == f64::INFINITY {
-                        pinf += 1;
-                    } else if x == f64::NEG_INFINITY {
-                        ninf += 1;
-                    } else {
-                        n += 1;
-                        sum += x;
-                        min = min.min(x);
-                        max = max.max(x);
-                    }
-                }
-            });
-        }
+    for _ in 0..reader.info().nz() {
+        reader.read_slice(slice)?;
+        with_samples!(&*slice, v => {
+            for &x in v.iter() {
+                raw_counts[(x.to_f64() as i64 - raw_lo) as usize] += 1;
+            }
+        });
         progress.advance(1);
     }
-    let fine = if exact {
-        for (i, &c) in raw_counts.iter().enumerate() {
-            if c > 0 {
-                let v = scaling.apply((i as i64 + raw_lo) as f64);
-                n += c;
-                sum += v * c as f64;
-                min = min.min(v);
-                max = max.max(v);
-            }
+    Ok(raw_counts)
+}
+
+/// The exact histogram in value order, adding its values to `totals`.
+fn exact_fine(raw_counts: Vec<u64>, raw_lo: i64, scaling: Scaling, totals: &mut Totals) -> Fine {
+    for (i, &c) in raw_counts.iter().enumerate() {
+        if c > 0 {
+            totals.add_copies(scaling.apply((i as i64 + raw_lo) as f64), c);
         }
-        // Values in raw order; a negative slope reverses them.
-        let mut counts = raw_counts;
-        let (lo, width) = if scaling.slope < 0.0 {
-            counts.reverse();
-            (
-                scaling.apply((raw_lo + raw_n as i64 - 1) as f64),
-                -scaling.slope,
-            )
-        } else {
-            (scaling.apply(raw_lo as f64), scaling.slope)
-        };
-        Fine { lo, width, counts }
+    }
+    // Values in raw order; a negative slope reverses them.
+    let raw_n = raw_counts.len();
+    let mut counts = raw_counts;
+    let (lo, width) = if scaling.slope < 0.0 {
+        counts.reverse();
+        (
+            scaling.apply((raw_lo + raw_n as i64 - 1) as f64),
+            -scaling.slope,
+        )
     } else {
-        let width = if max > min {
-            (max - min) / FINE_BINS as f64
-        } else {
-            1.0
-        };
-        let mut counts = vec![0u64; FINE_BINS];
-        reader.rewind()?;
-        for _ in 0..nz {
-            reader.read_slice(&mut slice)?;
-            with_samples!(&slice, v => {
-                for &x in v.iter() {
-                    let x = scaling.apply(x.to_f64());
-                    if x.is_finite() {
-                        let b = (((x - min) / width) as usize).min(FINE_BINS - 1);
-                        counts[b] += 1;
-                    }
+        (scaling.apply(raw_lo as f64), scaling.slope)
+    };
+    Fine { lo, width, counts }
+}
+
+/// First pass over other types: the totals of the (scaled) values.
+fn scan_values(
+    reader: &mut dyn SliceReader,
+    slice: &mut Samples,
+    scaling: Scaling,
+    totals: &mut Totals,
+    progress: &dyn Progress,
+) -> Result<()> {
+    for _ in 0..reader.info().nz() {
+        reader.read_slice(slice)?;
+        with_samples!(&*slice, v => {
+            for &x in v.iter() {
+                totals.add(scaling.apply(x.to_f64()));
+            }
+        });
+        progress.advance(1);
+    }
+    Ok(())
+}
+
+/// Second pass over other types: the finite values in 4096 bins over `[min, max]`.
+fn binned_fine(
+    reader: &mut dyn SliceReader,
+    slice: &mut Samples,
+    scaling: Scaling,
+    (min, max): (f64, f64),
+    progress: &dyn Progress,
+) -> Result<Fine> {
+    let width = if max > min {
+        (max - min) / FINE_BINS as f64
+    } else {
+        1.0
+    };
+    let mut counts = vec![0u64; FINE_BINS];
+    reader.rewind()?;
+    for _ in 0..reader.info().nz() {
+        reader.read_slice(slice)?;
+        with_samples!(&*slice, v => {
+            for &x in v.iter() {
+                let x = scaling.apply(x.to_f64());
+                if x.is_finite() {
+                    let b = (((x - min) / width) as usize).min(FINE_BINS - 1);
+                    counts[b] += 1;
                 }
-            });
-            progress.advance(1);
-        }
-        Fine {
-            lo: min + width / 2.0,
-            width,
-            counts,
-        }
+            }
+        });
+        progress.advance(1);
+    }
+    Ok(Fine {
+        lo: min + width / 2.0,
+        width,
+        counts,
+    })
+}
+
+pub fn compute(reader: &mut dyn SliceReader, progress: &dyn Progress) -> Result<Stats> {
+    let info = reader.info().clone();
+    let scaling = info.scaling;
+    let exact = matches!(info.dtype, DType::U8 | DType::I8 | DType::U16 | DType::I16);
+    let mut slice = Samples::new(info.dtype);
+    let mut t = Totals::new();
+    progress.start("statistics", info.nz() as u64 * if exact { 1 } else { 2 });
+    let fine = if exact {
+        let raw = raw_range(info.dtype);
+        let raw_counts = count_raw(reader, &mut slice, raw, progress)?;
+        exact_fine(raw_counts, raw.0, scaling, &mut t)
+    } else {
+        scan_values(reader, &mut slice, scaling, &mut t, progress)?;
+        binned_fine(reader, &mut slice, scaling, (t.min, t.max), progress)?
     };
     progress.finish();
+    let n = t.n;
     let quantiles = QUANTILES
         .iter()
         .map(|&q| (q, quantile(&fine, n, q)))
         .collect();
     let otsu = otsu(&fine);
-    let (edges, counts) = coarse(&fine, min, max);
+    let (edges, counts) = coarse(&fine, t.min, t.max);
     Ok(Stats {
         samples: info.voxel_count(),
-        nan,
-        pos_inf: pinf,
-        neg_inf: ninf,
-        min: if n > 0 { min } else { f64::NAN },
-        max: if n > 0 { max } else { f64::NAN },
-        mean: if n > 0 { sum / n as f64 } else { f64::NAN },
+        nan: t.nan,
+        pos_inf: t.pos_inf,
+        neg_inf: t.neg_inf,
+        min: if n > 0 { t.min } else { f64::NAN },
+        max: if n > 0 { t.max } else { f64::NAN },
+        mean: if n > 0 { t.sum / n as f64 } else { f64::NAN },
         quantiles,
         exact,
         otsu,
