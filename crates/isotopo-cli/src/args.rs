@@ -25,9 +25,12 @@ impl AxisArg {
     }
 }
 
-/// How much of the volume stays in memory.
+/// How the volume is swept: along which axis, with how much of it in memory.
 #[derive(Args, Clone)]
-pub(crate) struct WindowArgs {
+pub(crate) struct SweepArgs {
+    /// Sweep direction.
+    #[arg(long, value_enum, default_value = "z")]
+    pub(crate) axis: AxisArg,
     /// Planes of the volume held in memory at once (as inside bits); the rest wait in a scratch
     /// file (in TMPDIR) and are read back when a long handle needs them. 0: the whole volume.
     /// Default: as many as fit in 16 MiB, the whole volume when it fits.

@@ -259,15 +259,7 @@ pub fn simplify_json(
     after: &crate::topology::genus::GenusReport,
     info: &VolumeInfo,
 ) -> serde_json::Value {
-    use crate::closure::Operation;
-    let count = |op| -> usize {
-        outcome
-            .removed
-            .iter()
-            .filter(|r| r.operation == op)
-            .map(|r| r.handles)
-            .sum()
-    };
+    use crate::simplify::Operation;
     let removed: Vec<serde_json::Value> = outcome
         .removed
         .iter()
@@ -279,16 +271,8 @@ pub fn simplify_json(
             v
         })
         .collect();
-    let max_distance = outcome
-        .removed
-        .iter()
-        .map(|r| r.max_distance)
-        .fold(0.0, f64::max);
-    let max_distance_mm = outcome
-        .removed
-        .iter()
-        .map(|r| r.max_distance_mm)
-        .fold(0.0, f64::max);
+    let (max_distance, max_distance_mm) = outcome.max_distance();
+    let (samples_filled, samples_cut) = outcome.samples_filled_cut();
     serde_json::json!({
         "genus_before": before.b1,
         "genus_after": after.b1,
@@ -299,11 +283,11 @@ pub fn simplify_json(
         "surfaces_before": before.surfaces.len(),
         "surfaces_after": after.surfaces.len(),
         "intra_ribbon": outcome.intra_ribbon,
-        "collapse": count(Operation::Collapse),
-        "pinch": count(Operation::Pinch),
+        "collapse": outcome.handles_removed_by(Operation::Collapse),
+        "pinch": outcome.handles_removed_by(Operation::Pinch),
         "samples_changed": outcome.edits.len(),
-        "samples_filled": outcome.edits.iter().filter(|e| e.1).count(),
-        "samples_cut": outcome.edits.iter().filter(|e| !e.1).count(),
+        "samples_filled": samples_filled,
+        "samples_cut": samples_cut,
         "max_distance": max_distance,
         "max_distance_mm": max_distance_mm,
         "passes": outcome.passes,

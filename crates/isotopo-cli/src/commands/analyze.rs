@@ -15,10 +15,7 @@ pub(crate) struct AnalyzeArgs {
     #[command(flatten)]
     surface: SurfaceArgs,
     #[command(flatten)]
-    window: WindowArgs,
-    /// Sweep direction.
-    #[arg(long, value_enum, default_value = "z")]
-    axis: AxisArg,
+    sweep: SweepArgs,
     /// Stop the searches at this length (voxel edges): longer loops cannot matter when
     /// simplifying with this threshold. Default: no limit.
     #[arg(long)]
@@ -60,7 +57,7 @@ pub(crate) enum MetricArg {
 pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     use isotopo::jobs::Lengths;
     let opts = a.surface.options()?;
-    let axis = a.axis.axis();
+    let axis = a.sweep.axis.axis();
     let reader = a.input.open()?;
     let info = reader.info().clone();
     if let Some(p) = &a.loops {
@@ -87,7 +84,7 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     let aopts = isotopo::AnalyzeOptions {
         surface: opts,
         axis,
-        max_slices: a.window.max_slices,
+        max_slices: a.sweep.max_slices,
         tau,
         tau_mm,
         lengths,
@@ -229,11 +226,7 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
             "  {:>5} {:>7}  {:<12} {:>6} {:>18} {:>18}  [{}..{}, {}..{}, {}..{}]",
             h.id,
             h.surface,
-            if h.located.kind == isotopo::sweep::HandleKind::ReebCycle {
-                "reeb_cycle"
-            } else {
-                "intra_ribbon"
-            },
+            h.located.kind.name(),
             sizes[i]
                 .map(|s| s.to_string())
                 .unwrap_or_else(|| "-".into()),

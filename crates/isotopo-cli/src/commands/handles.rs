@@ -13,10 +13,7 @@ pub(crate) struct HandlesArgs {
     #[command(flatten)]
     surface: SurfaceArgs,
     #[command(flatten)]
-    window: WindowArgs,
-    /// Sweep direction.
-    #[arg(long, value_enum, default_value = "z")]
-    axis: AxisArg,
+    sweep: SweepArgs,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
@@ -29,17 +26,16 @@ pub(crate) struct HandlesArgs {
 
 pub(crate) fn run(a: HandlesArgs) -> Result<()> {
     let opts = a.surface.options()?;
-    let axis = a.axis.axis();
+    let axis = a.sweep.axis.axis();
     let bars = progress::Bars::new(a.quiet || a.json);
     let aopts = isotopo::AnalyzeOptions {
         surface: opts,
         axis,
-        max_slices: a.window.max_slices,
+        max_slices: a.sweep.max_slices,
         ..isotopo::AnalyzeOptions::default()
     };
     let found = isotopo::handles(isotopo::Source::Reader(a.input.open()?), &aopts, &bars)?;
     let (info, report, secs) = (&found.info, &found.report, found.seconds);
-    let handles = isotopo::report::handles_json(report, info);
     if a.json {
         println!("{}", to_json(&found.to_json(&aopts))?);
         return Ok(());
@@ -65,27 +61,28 @@ pub(crate) fn run(a: HandlesArgs) -> Result<()> {
             "id", "surface", "kind", "slices"
         );
     }
-    for h in handles.iter().take(shown) {
-        let b = &h["bbox"];
-        let m = &h["bbox_mm"];
+    let w = axis.uvw()[2];
+    for h in report.handles.iter().take(shown) {
+        let (b, kind) = (&h.located.bbox, h.located.kind);
+        let m = b.to_mm(&info.affine);
         println!(
             "  {:>5} {:>7}  {:<12} {:>9}  [{}..{}, {}..{}, {}..{}]  [{:.1}..{:.1}, {:.1}..{:.1}, {:.1}..{:.1}]",
-            h["id"],
-            h["surface"],
-            h["kind"].as_str().unwrap_or(""),
-            format!("{}..{}", h["slices"][0], h["slices"][1]),
-            b["min"][0],
-            b["max"][0],
-            b["min"][1],
-            b["max"][1],
-            b["min"][2],
-            b["max"][2],
-            m[0][0].as_f64().unwrap_or(0.0),
-            m[1][0].as_f64().unwrap_or(0.0),
-            m[0][1].as_f64().unwrap_or(0.0),
-            m[1][1].as_f64().unwrap_or(0.0),
-            m[0][2].as_f64().unwrap_or(0.0),
-            m[1][2].as_f64().unwrap_or(0.0)
+            h.id,
+            h.surface,
+            kind.name(),
+            format!("{}..{}", b.min[w], b.max[w]),
+            b.min[0],
+            b.max[0],
+            b.min[1],
+            b.max[1],
+            b.min[2],
+            b.max[2],
+            m[0][0],
+            m[1][0],
+            m[0][1],
+            m[1][1],
+            m[0][2],
+            m[1][2]
         );
     }
     if shown < report.handles.len() {

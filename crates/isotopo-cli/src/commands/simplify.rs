@@ -4,6 +4,7 @@ use crate::args::*;
 use crate::print::*;
 use crate::progress;
 use clap::Args;
+use isotopo::simplify::Operation;
 use isotopo::volume::{self};
 use isotopo::{Error, Result};
 use std::path::PathBuf;
@@ -16,7 +17,7 @@ pub(crate) struct SimplifyArgs {
     #[command(flatten)]
     surface: SurfaceArgs,
     #[command(flatten)]
-    window: WindowArgs,
+    sweep: SweepArgs,
     /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
     /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
     #[arg(long, required_unless_present = "tau_mm", conflicts_with = "tau_mm")]
@@ -41,9 +42,6 @@ pub(crate) struct SimplifyArgs {
     /// Keep long skinny handles: those whose longer loop is more than R times the shorter.
     #[arg(long, value_name = "R")]
     max_ratio: Option<f64>,
-    /// Sweep direction.
-    #[arg(long, value_enum, default_value = "z")]
-    axis: AxisArg,
     /// Write a JSON report (genus before/after, every removed and kept handle).
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
@@ -72,7 +70,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     }
     let sopts = SimplifyOptions {
         surface,
-        axis: a.axis.axis(),
+        axis: a.sweep.axis.axis(),
         tau,
         metric,
         mode: if a.fill_only {
@@ -83,7 +81,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
             Mode::Both
         },
         max_ratio: a.max_ratio,
-        max_slices: a.window.max_slices,
+        max_slices: a.sweep.max_slices,
     };
     // Every output is checked before the work starts.
     let reader = a.input.open()?;
@@ -147,8 +145,10 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     let (t_read, t_simplify) = (done.seconds_read, done.seconds_simplify);
     let opts = &surface;
     let axis = sopts.axis;
-    let collapse = v["collapse"].as_u64().unwrap_or(0);
-    let pinch = v["pinch"].as_u64().unwrap_or(0);
+    let collapse = outcome.handles_removed_by(Operation::Collapse);
+    let pinch = outcome.handles_removed_by(Operation::Pinch);
+    let (filled, cut) = outcome.samples_filled_cut();
+    let (max_distance, max_distance_mm) = outcome.max_distance();
     println!(
         "{}: iso {}, inside {}, connectivity {}, sweep along {}, tau {}{}{}",
         info.path.display(),
@@ -225,10 +225,10 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     println!(
         "samples     {} changed ({} filled, {} cut), all within {:.1} voxels ({:.1} mm) of a closed loop; wall values: inside {}, outside {}",
         group(outcome.edits.len() as u64),
-        group(v["samples_filled"].as_u64().unwrap_or(0)),
-        group(v["samples_cut"].as_u64().unwrap_or(0)),
-        v["max_distance"].as_f64().unwrap_or(0.0),
-        v["max_distance_mm"].as_f64().unwrap_or(0.0),
+        group(filled as u64),
+        group(cut as u64),
+        max_distance,
+        max_distance_mm,
         values.inside.map(num).unwrap_or_else(|| "-".into()),
         values.outside.map(num).unwrap_or_else(|| "-".into())
     );

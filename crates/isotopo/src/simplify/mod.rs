@@ -268,6 +268,28 @@ pub struct Outcome {
     pub seconds: StageSeconds,
 }
 
+impl Outcome {
+    /// Handles removed by fills ([`Operation::Collapse`]) or by cuts ([`Operation::Pinch`]),
+    /// counting the tiny ones a wall removed beside its own.
+    pub fn handles_removed_by(&self, op: Operation) -> usize {
+        let by_op = self.removed.iter().filter(|r| r.operation == op);
+        by_op.map(|r| r.handles).sum()
+    }
+
+    /// Samples set inside (filled) and set outside (cut).
+    pub fn samples_filled_cut(&self) -> (usize, usize) {
+        let filled = self.edits.iter().filter(|e| e.1).count();
+        (filled, self.edits.len() - filled)
+    }
+
+    /// How far the farthest changed sample lies from its closed loop: voxels, and mm.
+    pub fn max_distance(&self) -> (f64, f64) {
+        let voxels = self.removed.iter().map(|r| r.max_distance);
+        let mm = self.removed.iter().map(|r| r.max_distance_mm);
+        (voxels.fold(0.0, f64::max), mm.fold(0.0, f64::max))
+    }
+}
+
 /// Where the time went.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageSeconds {

@@ -47,6 +47,16 @@ pub enum HandleKind {
     IntraRibbon,
 }
 
+impl HandleKind {
+    /// As in the reports: "reeb_cycle" or "intra_ribbon".
+    pub fn name(self) -> &'static str {
+        match self {
+            HandleKind::ReebCycle => "reeb_cycle",
+            HandleKind::IntraRibbon => "intra_ribbon",
+        }
+    }
+}
+
 /// The volume a handle's cycle and cut live in.
 #[derive(Clone, Debug)]
 pub enum CycleVolume {
