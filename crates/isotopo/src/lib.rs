@@ -52,12 +52,13 @@
 //!   and the searches on it.
 //! - [`sweep`]: contours, ribbons and the Reeb graph: every handle located.
 //! - [`loops`]: each handle's Reeb loop and cross loop, the shortest on the whole surface.
-//! - [`closure`]: walls across loops, written into the volume and verified.
+//! - `closure`: walls across loops, written into the volume and verified.
 //! - [`simplify`](mod@simplify): sweep, measure, close, rewind, until no handle below tau is left.
 //! - [`report`], [`plots`]: JSON, CSV and plots of the results; [`jobs`]: the entry points.
 
 // Index loops read better than iterator chains in the matrix and grid code here.
 #![allow(clippy::needless_range_loop)]
+#![warn(missing_docs)]
 
 pub(crate) mod closure;
 pub mod error;

@@ -28,7 +28,9 @@ use std::path::Path;
 /// An indexed triangle mesh in world millimetres, triangles facing out of the solid.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
+    /// Vertex positions in world millimetres (RAS+, as the volume's affine maps them).
     pub vertices: Vec<[f32; 3]>,
+    /// Indices into `vertices`, counter-clockwise seen from outside the solid.
     pub triangles: Vec<[u32; 3]>,
 }
 

@@ -54,10 +54,11 @@ pub fn write(
     let mut out = Vec::new();
     for ext in ["svg", "png"] {
         let h = dir.join(format!("histogram.{ext}"));
-        atomically(&h, ext, |p| histogram(p, ext, title, points, tau))?;
+        let data = (title, points, tau);
+        atomically(&h, ext, |p| render(p, ext, Plot::Histogram, data))?;
         out.push(h);
         let s = dir.join(format!("scatter.{ext}"));
-        atomically(&s, ext, |p| scatter(p, ext, title, points, tau))?;
+        atomically(&s, ext, |p| render(p, ext, Plot::Scatter, data))?;
         out.push(s);
     }
     Ok(out)
@@ -84,39 +85,39 @@ fn atomically(path: &Path, ext: &str, draw: impl FnOnce(&Path) -> Result<()>) ->
 
 const SIZE: (u32, u32) = (900, 600);
 
-fn histogram(
+/// The two plots.
+#[derive(Clone, Copy)]
+enum Plot {
+    Histogram,
+    Scatter,
+}
+
+/// Draws `plot` into `path`, as SVG or PNG by `ext`.
+fn render(
     path: &Path,
     ext: &str,
-    title: &str,
-    points: &[PlotPoint],
-    tau: Option<f64>,
+    plot: Plot,
+    data: (&str, &[PlotPoint], Option<f64>),
 ) -> Result<()> {
     if ext == "svg" {
         let root = SVGBackend::new(path, SIZE).into_drawing_area();
-        draw_histogram(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
         root.present().map_err(|e| plot_err(path, e))
     } else {
         let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-        draw_histogram(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
+        draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
         root.present().map_err(|e| plot_err(path, e))
     }
 }
 
-fn scatter(
-    path: &Path,
-    ext: &str,
-    title: &str,
-    points: &[PlotPoint],
-    tau: Option<f64>,
-) -> Result<()> {
-    if ext == "svg" {
-        let root = SVGBackend::new(path, SIZE).into_drawing_area();
-        draw_scatter(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
-        root.present().map_err(|e| plot_err(path, e))
-    } else {
-        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-        draw_scatter(&root, title, points, tau).map_err(|e| plot_err(path, e))?;
-        root.present().map_err(|e| plot_err(path, e))
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    plot: Plot,
+    (title, points, tau): (&str, &[PlotPoint], Option<f64>),
+) -> DrawResult<DB> {
+    match plot {
+        Plot::Histogram => draw_histogram(root, title, points, tau),
+        Plot::Scatter => draw_scatter(root, title, points, tau),
     }
 }
 

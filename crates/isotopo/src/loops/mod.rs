@@ -379,7 +379,7 @@ impl Region for OneRibbon<'_> {
 
 /// The homology generators of ribbon `ribbon` of slice `slice` of the swept volume, its
 /// boundary contours capped: 2 × its genus closed curves on the surface that span every loop of
-/// the capped ribbon (a tree–cotree decomposition, see [`crate::sweep::local`]).
+/// the capped ribbon (a tree–cotree decomposition, see `sweep::local`).
 pub fn ribbon_generators(
     top: &mut Graph,
     cache: &mut SliceCache,

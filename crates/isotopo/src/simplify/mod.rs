@@ -15,7 +15,7 @@
 //! whole sweep runs again until a pass closes nothing: the last pass is exactly an analysis of
 //! the result, and what it keeps is what is reported as kept.
 //!
-//! Every closure is verified locally before it is kept ([`closure::close`]): it removes one handle
+//! Every closure is verified locally before it is kept (`closure::close`): it removes one handle
 //! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
 //! is checked again on the whole volume at the end.
 

@@ -7,12 +7,12 @@
 //! graph, a cycle closes: that is a handle, described by the shortest such cycle (breadth-first
 //! search). A ribbon that is of positive genus once its contours are capped hides handles
 //! within its slice; those are found by sweeping a capped mini-volume of the slice along an
-//! orthogonal axis ([`mini`]). Genus of a surface = its Reeb cycles + the genus of its capped
+//! orthogonal axis (`mini`). Genus of a surface = its Reeb cycles + the genus of its capped
 //! ribbons, so every handle is found.
 //!
 //! Small handles often stay inside one slice of the mini-volume too (their loops run through the
 //! caps; the tunnel inside a single cube stays inside a slice along every axis). The mini-volume
-//! ribbons that hold them are small, and their handles are found directly ([`local`]).
+//! ribbons that hold them are small, and their handles are found directly (`local`).
 //!
 //! Every handle carries a *cut*: a closed curve on the surface that its Reeb loop must cross
 //! once — the shortest contour of its cycle, or for a handle found directly, the loop crossing

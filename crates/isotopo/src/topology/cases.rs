@@ -39,6 +39,7 @@ pub enum Connectivity {
 }
 
 impl Connectivity {
+    /// The adjacency of inside samples as a number: 6 or 26.
     pub fn number(self) -> u32 {
         match self {
             Connectivity::Six => 6,
@@ -216,16 +217,20 @@ pub const MAX_TRIANGLES: usize = 6;
 /// A cube case under one connectivity.
 #[derive(Clone, Debug, Default)]
 pub struct Case {
+    /// The surface pieces in the cube, in order of their lowest corner.
     pub pieces: Vec<Piece>,
     // Compact copies of what the per-cube loops read, so the hot table fits in cache:
     /// Number of pieces.
     pub n_pieces: u8,
-    /// All triangles of all pieces, with the piece of each.
+    /// Number of triangles of all pieces together: `triangles[..n_triangles]` are used.
     pub n_triangles: u8,
+    /// All triangles of all pieces, piece by piece, as cube edges (outward-facing).
     pub triangles: [[u8; 3]; MAX_TRIANGLES],
+    /// Piece (index into `pieces`) of each triangle.
     pub triangle_piece: [u8; MAX_TRIANGLES],
-    /// Per piece: `Piece::chi4` and `Piece::ribbon_chi4`.
+    /// Per piece: [`Piece::chi4`].
     pub chi4: [i8; 4],
+    /// Per piece: [`Piece::ribbon_chi4`].
     pub ribbon_chi4: [i8; 4],
     /// Per piece: the upper corner of the first z-edge its boundary crosses, or [`NONE`].
     pub z_upper: [u8; 4],

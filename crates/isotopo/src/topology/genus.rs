@@ -40,6 +40,8 @@ impl Default for SurfaceOptions {
 }
 
 impl SurfaceOptions {
+    /// The inside/outside test for the raw samples of the volume `info` describes (the isovalue
+    /// is compared with values after its scaling).
     pub fn classifier(&self, info: &VolumeInfo) -> Classifier {
         Classifier {
             iso: self.iso,

@@ -35,12 +35,16 @@ impl Inside {
 /// Decides inside/outside for raw samples of a volume.
 #[derive(Clone, Copy, Debug)]
 pub struct Classifier {
+    /// Isovalue, in value units (after `scaling`).
     pub iso: f64,
+    /// Which side of the isovalue is inside.
     pub inside: Inside,
+    /// The header's scaling from raw samples to values.
     pub scaling: Scaling,
 }
 
 impl Classifier {
+    /// Whether a value (already scaled) is inside; NaN and values equal to `iso` are outside.
     #[inline]
     pub fn inside_value(&self, value: f64) -> bool {
         match self.inside {
@@ -59,10 +63,14 @@ impl Classifier {
 /// One padded z-plane of inside bits.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PlaneMask {
+    /// Samples along x (without the padding).
     pub nx: usize,
+    /// Samples along y (without the padding).
     pub ny: usize,
     /// u64 words per padded row.
     pub words: usize,
+    /// `ny + 2` padded rows of `words` words each; padded column `i` is bit `i % 64` of word
+    /// `i / 64` of its row.
     pub bits: Vec<u64>,
 }
 
@@ -99,6 +107,7 @@ impl PlaneMask {
         self.get_padded(x as usize + 1, y as usize + 1)
     }
 
+    /// Sets the inside bit of sample (x, y), which must lie in the volume.
     #[inline]
     pub fn set(&mut self, x: usize, y: usize, inside: bool) {
         let (i, j) = (x + 1, y + 1);
@@ -110,10 +119,12 @@ impl PlaneMask {
         }
     }
 
+    /// Number of inside samples in the plane.
     pub fn count(&self) -> u64 {
         self.bits.iter().map(|w| w.count_ones() as u64).sum()
     }
 
+    /// True when no sample of the plane is inside.
     pub fn is_empty(&self) -> bool {
         self.bits.iter().all(|&w| w == 0)
     }

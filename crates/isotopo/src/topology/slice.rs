@@ -20,7 +20,9 @@ pub struct Cube {
     pub i: u32,
     /// Padded row, 0 ..= ny.
     pub j: u32,
+    /// Cube case: bit `b` says corner `b = x + 2y + 4z` is inside (see [`super::cases`]).
     pub case: u8,
+    /// Slice-wide number of its first piece; its pieces are numbered consecutively from it.
     pub first_piece: u32,
 }
 
@@ -31,12 +33,15 @@ pub struct Ribbon {
     pub chi4: i32,
     /// 4 × its share of its closed surface's Euler characteristic.
     pub surface_chi4: i32,
+    /// Number of cube pieces it is made of.
     pub pieces: u32,
-    /// Segments on the lower / upper plane (its boundary contours there).
+    /// Segments on the lower plane (its boundary contours there).
     pub bottom_segments: u32,
+    /// Segments on the upper plane (its boundary contours there).
     pub top_segments: u32,
-    /// Bounding box in padded cube indices: [min i, min j], [max i, max j].
+    /// Bounding box in padded cube indices: [min i, min j].
     pub min: [u32; 2],
+    /// Bounding box in padded cube indices: [max i, max j] (inclusive).
     pub max: [u32; 2],
     /// For a crossing on a vertical (z) edge of this ribbon: is the edge's upper sample inside?
     /// In the lowest slice of a surface this tells whether the surface encloses material.
@@ -68,17 +73,23 @@ impl Ribbon {
 pub struct SliceSurfels {
     /// Lower plane (-1 ..= nz - 1).
     pub z: i32,
+    /// Samples along x of the volume (without padding).
     pub nx: usize,
+    /// Samples along y of the volume (without padding).
     pub ny: usize,
+    /// The mixed cubes, row by row (by `j`, then `i`).
     pub cubes: Vec<Cube>,
     /// `cubes[row_start[j] .. row_start[j + 1]]` are the cubes of row `j`, by increasing `i`.
     pub row_start: Vec<u32>,
     /// Ribbon of each piece.
     pub piece_ribbon: Vec<u32>,
+    /// The ribbons, indexed by the labels in `piece_ribbon`.
     pub ribbons: Vec<Ribbon>,
     /// Cubes whose lower (`-z`) face carries segments, in (j, i) order: the squares of plane `z`
-    /// that the surface crosses. Likewise `top` for plane `z + 1`.
+    /// that the surface crosses.
     pub bottom: Vec<u32>,
+    /// Cubes whose upper (`+z`) face carries segments, in (j, i) order: the squares of plane
+    /// `z + 1` that the surface crosses.
     pub top: Vec<u32>,
 }
 
@@ -277,10 +288,6 @@ impl SliceSurfels {
                 }
             }
         }
-    }
-
-    pub fn piece_count(&self) -> usize {
-        self.piece_ribbon.len()
     }
 
     /// Index into `cubes` of the cube at padded (i, j), if it is mixed.

@@ -5,10 +5,15 @@ use crate::volume::{Samples, Scaling};
 
 /// Read access to the values of the two planes of a slice (either may be a padding plane).
 pub struct SliceValues<'a> {
+    /// Raw samples of plane z (`nx·ny`, x fastest), or `None` for the padding plane z = -1.
     pub lower: Option<&'a Samples>,
+    /// Raw samples of plane z + 1, or `None` for the padding plane z = nz.
     pub upper: Option<&'a Samples>,
+    /// Samples along x (without padding).
     pub nx: usize,
+    /// Samples along y (without padding).
     pub ny: usize,
+    /// The header's scaling from raw samples to values.
     pub scaling: Scaling,
 }
 

@@ -5,24 +5,35 @@ use std::fmt;
 /// The sample types isotopo reads and writes, in every format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DType {
+    /// Unsigned 8-bit integers (`uint8`).
     U8,
+    /// Signed 8-bit integers (`int8`).
     I8,
+    /// Unsigned 16-bit integers (`uint16`).
     U16,
+    /// Signed 16-bit integers (`int16`).
     I16,
+    /// Unsigned 32-bit integers (`uint32`).
     U32,
+    /// Signed 32-bit integers (`int32`).
     I32,
+    /// IEEE 754 single-precision floats (`float32`).
     F32,
+    /// IEEE 754 double-precision floats (`float64`).
     F64,
 }
 
 /// Byte order of samples in a file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Endian {
+    /// Little-endian: least significant byte first.
     Little,
+    /// Big-endian: most significant byte first.
     Big,
 }
 
 impl Endian {
+    /// The byte order of the machine running isotopo.
     pub const NATIVE: Endian = if cfg!(target_endian = "big") {
         Endian::Big
     } else {
@@ -31,6 +42,7 @@ impl Endian {
 }
 
 impl DType {
+    /// Every sample type, in declaration order (`U8` to `F64`).
     pub const ALL: [DType; 8] = [
         DType::U8,
         DType::I8,
@@ -82,6 +94,7 @@ impl DType {
         Some(t)
     }
 
+    /// True for the floating-point types [`DType::F32`] and [`DType::F64`].
     pub fn is_float(self) -> bool {
         matches!(self, DType::F32 | DType::F64)
     }
@@ -110,13 +123,21 @@ impl fmt::Display for DType {
 /// A run of samples of one type: one z-slice, usually, in x-fastest order.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Samples {
+    /// Unsigned 8-bit samples.
     U8(Vec<u8>),
+    /// Signed 8-bit samples.
     I8(Vec<i8>),
+    /// Unsigned 16-bit samples.
     U16(Vec<u16>),
+    /// Signed 16-bit samples.
     I16(Vec<i16>),
+    /// Unsigned 32-bit samples.
     U32(Vec<u32>),
+    /// Signed 32-bit samples.
     I32(Vec<i32>),
+    /// Single-precision float samples.
     F32(Vec<f32>),
+    /// Double-precision float samples.
     F64(Vec<f64>),
 }
 
@@ -139,11 +160,17 @@ macro_rules! with_samples {
 
 /// A primitive sample type: conversion from file bytes and to `f64`.
 pub trait Sample: Copy + Send + Sync + PartialOrd + 'static {
+    /// The [`DType`] of this primitive type.
     const DTYPE: DType;
+    /// Decodes one sample from exactly `size_of::<Self>()` little-endian bytes (panics otherwise).
     fn from_le(bytes: &[u8]) -> Self;
+    /// Decodes one sample from exactly `size_of::<Self>()` big-endian bytes (panics otherwise).
     fn from_be(bytes: &[u8]) -> Self;
+    /// Appends the sample's little-endian bytes to `out`.
     fn write_le(self, out: &mut Vec<u8>);
+    /// Appends the sample's big-endian bytes to `out`.
     fn write_be(self, out: &mut Vec<u8>);
+    /// The sample's value as `f64` (exact for every sample type).
     fn to_f64(self) -> f64;
     /// Converts an `f64` that is known to be representable (used for written wall values).
     fn from_f64(v: f64) -> Self;
@@ -169,6 +196,7 @@ pub enum Threshold<T> {
 }
 
 impl<T: Sample> Threshold<T> {
+    /// Whether sample `v` passes the comparison.
     #[inline]
     pub fn test(&self, v: T) -> bool {
         match *self {
@@ -350,6 +378,7 @@ impl Samples {
         }
     }
 
+    /// The type of the samples held.
     pub fn dtype(&self) -> DType {
         match self {
             Samples::U8(_) => DType::U8,
@@ -363,10 +392,12 @@ impl Samples {
         }
     }
 
+    /// Number of samples held.
     pub fn len(&self) -> usize {
         with_samples!(self, v => v.len())
     }
 
+    /// True when no sample is held.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -4,10 +4,12 @@
 /// stored as the top three rows of the 4×4 matrix (`m[r] = [M[r][0], M[r][1], M[r][2], t[r]]`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Affine {
+    /// Rows of `[M | t]`: `m[r][c]` for `c < 3` is `M[r][c]`, `m[r][3]` is `t[r]` (millimetres).
     pub m: [[f64; 4]; 3],
 }
 
 impl Affine {
+    /// Voxel index = world millimetres: unit spacing along x, y, z, voxel (0,0,0) at the origin.
     pub const IDENTITY: Affine = Affine {
         m: [
             [1.0, 0.0, 0.0, 0.0],
@@ -85,6 +87,7 @@ impl Affine {
         d
     }
 
+    /// World position of voxel (0,0,0) in millimetres: the translation `t`.
     pub fn origin(&self) -> [f64; 3] {
         [self.m[0][3], self.m[1][3], self.m[2][3]]
     }
@@ -127,21 +130,26 @@ impl Affine {
 /// Inclusive bounds in voxel indices.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct BBox {
+    /// Smallest x, y, z voxel index in the box.
     pub min: [i64; 3],
+    /// Largest x, y, z voxel index in the box (inclusive).
     pub max: [i64; 3],
 }
 
 impl BBox {
+    /// The box containing nothing (`min` > `max`), to grow with [`BBox::include`].
     pub const EMPTY: BBox = BBox {
         min: [i64::MAX; 3],
         max: [i64::MIN; 3],
     };
+    /// Grows the box to contain voxel `p`.
     pub fn include(&mut self, p: [i64; 3]) {
         for a in 0..3 {
             self.min[a] = self.min[a].min(p[a]);
             self.max[a] = self.max[a].max(p[a]);
         }
     }
+    /// Grows the box to contain `o` by including its two corners (`o` must not be empty).
     pub fn union(&mut self, o: &BBox) {
         self.include(o.min);
         self.include(o.max);

@@ -4,8 +4,11 @@
 use super::{DType, Samples, SliceReader, VolumeInfo};
 use crate::error::{Error, Result};
 
+/// A whole volume in memory, one [`Samples`] buffer per z-slice; as a [`SliceReader`] it hands
+/// out copies of its slices in order.
 #[derive(Clone, Debug)]
 pub struct InMemoryVolume {
+    /// Description of the volume: dims, sample type, geometry, scaling, source file.
     pub info: VolumeInfo,
     /// One entry per z-slice, `nx·ny` samples each, `x` fastest.
     pub slices: Vec<Samples>,
@@ -13,6 +16,8 @@ pub struct InMemoryVolume {
 }
 
 impl InMemoryVolume {
+    /// A volume from its description and its `nz` slices (`nx·ny` samples each, of type
+    /// `info.dtype`), positioned at slice 0.
     pub fn new(info: VolumeInfo, slices: Vec<Samples>) -> InMemoryVolume {
         debug_assert_eq!(slices.len(), info.nz());
         InMemoryVolume {
@@ -71,6 +76,7 @@ impl InMemoryVolume {
         Ok(InMemoryVolume::new(reader.info().clone(), slices))
     }
 
+    /// Samples along x, y, z (`info.dims`).
     pub fn dims(&self) -> [usize; 3] {
         self.info.dims
     }
@@ -80,6 +86,8 @@ impl InMemoryVolume {
         self.slices[z].get_f64(y * self.info.dims[0] + x)
     }
 
+    /// Sets the raw sample at `(x, y, z)` to `v`, which must be representable in the volume's
+    /// type (it is cast, not checked).
     pub fn set(&mut self, x: usize, y: usize, z: usize, v: f64) {
         let nx = self.info.dims[0];
         self.slices[z].set_f64(y * nx + x, v)

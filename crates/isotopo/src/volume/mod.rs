@@ -58,6 +58,7 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format's usual name, for messages and reports (`NIfTI`, `NRRD`, `MGH`, …).
     pub fn name(self) -> &'static str {
         match self {
             Format::Nifti => "NIfTI",
@@ -103,6 +104,7 @@ impl Format {
 /// How a stream of samples is compressed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Compression {
+    /// Uncompressed.
     None,
     /// gzip (`.gz`, NRRD `gzip`, MGZ).
     Gzip,
@@ -113,20 +115,25 @@ pub enum Compression {
 /// Intensity scaling stored in the header (NIfTI `scl_slope`/`scl_inter`): value = raw·slope + inter.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Scaling {
+    /// Rescale slope: value = raw·slope + inter.
     pub slope: f64,
+    /// Rescale intercept, in value units: value = raw·slope + inter.
     pub inter: f64,
 }
 
 impl Scaling {
+    /// Slope 1, intercept 0: values are the raw samples.
     pub const IDENTITY: Scaling = Scaling {
         slope: 1.0,
         inter: 0.0,
     };
 
+    /// True when the scaling leaves raw samples unchanged (slope exactly 1, intercept exactly 0).
     pub fn is_identity(&self) -> bool {
         self.slope == 1.0 && self.inter == 0.0
     }
 
+    /// The value of a raw stored sample: `raw·slope + inter`.
     #[inline]
     pub fn apply(&self, raw: f64) -> f64 {
         raw * self.slope + self.inter
@@ -138,6 +145,7 @@ impl Scaling {
 pub struct VolumeInfo {
     /// The file the user named.
     pub path: PathBuf,
+    /// Format of the file ([`Format::Raw`] for synthetic volumes).
     pub format: Format,
     /// Samples along x, y, z. `x` varies fastest in memory and in every stream.
     pub dims: [usize; 3],
@@ -148,20 +156,24 @@ pub struct VolumeInfo {
     pub affine: Affine,
     /// Scaling applied to raw samples to get values (identity for most formats).
     pub scaling: Scaling,
-    /// How the samples were stored: byte order and compression.
+    /// Byte order of the stored samples.
     pub endian: Endian,
+    /// Compression of the stored samples.
     pub compression: Compression,
     /// The format's own header, kept so that writing back to the same format is faithful.
     pub header: FormatHeader,
 }
 
 impl VolumeInfo {
+    /// Samples along x (`dims[0]`).
     pub fn nx(&self) -> usize {
         self.dims[0]
     }
+    /// Samples along y (`dims[1]`).
     pub fn ny(&self) -> usize {
         self.dims[1]
     }
+    /// Samples along z (`dims[2]`): the number of z-slices.
     pub fn nz(&self) -> usize {
         self.dims[2]
     }
@@ -169,6 +181,7 @@ impl VolumeInfo {
     pub fn slice_len(&self) -> usize {
         self.dims[0] * self.dims[1]
     }
+    /// Samples in the whole volume: `nx·ny·nz`.
     pub fn voxel_count(&self) -> u64 {
         self.dims.iter().map(|&d| d as u64).product()
     }
@@ -196,12 +209,19 @@ impl VolumeInfo {
 /// Header bytes and fields each format keeps for a faithful write-back.
 #[derive(Clone, Debug)]
 pub enum FormatHeader {
+    /// No header: headerless raw files and synthetic or in-memory volumes.
     None,
+    /// NIfTI-1/2: the file's bytes before the samples (header, extension flag, extensions).
     Nifti(nifti::NiftiHeader),
+    /// NRRD: the magic line, every other header line verbatim, and the detached data file if any.
     Nrrd(nrrd::NrrdHeader),
+    /// MGH/MGZ: the 284 header bytes, and the trailer that follows the samples.
     Mgh(mgh::MghHeader),
+    /// MetaImage: the `Key = Value` fields in file order, and the detached data file if any.
     MetaImage(metaimage::MetaHeader),
+    /// NumPy: no fields beyond those of [`VolumeInfo`].
     Npy,
+    /// TIFF: no fields beyond those of [`VolumeInfo`].
     Tiff,
 }
 
@@ -222,6 +242,8 @@ pub struct ReadOptions {
 
 /// Streams the z-slices of a volume, in order.
 pub trait SliceReader: Send {
+    /// What is known about the volume. Complete once every slice has been read (an MGH trailer
+    /// is kept in its [`FormatHeader`] only then).
     fn info(&self) -> &VolumeInfo;
     /// Reads the next z-slice (`nx·ny` samples, `x` fastest) into `out`, replacing its content.
     fn read_slice(&mut self, out: &mut Samples) -> Result<()>;
@@ -347,6 +369,7 @@ fn sniff(path: &Path) -> Result<Format> {
 
 /// Writes z-slices, in order, to a new file that appears only when [`SliceWriter::finish`] succeeds.
 pub trait SliceWriter {
+    /// Writes the next z-slice: `nx·ny` samples, `x` fastest, of the volume's sample type.
     fn write_slice(&mut self, slice: &Samples) -> Result<()>;
     /// Completes the file and moves it into place. `source` is the final description of the
     /// volume (after reading it completely: MGH keeps its trailer there).

@@ -9,13 +9,19 @@ use crate::with_samples;
 /// Statistics of a volume's values (after the header's intensity scaling).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Stats {
+    /// Samples in the volume (`nx·ny·nz`), finite or not.
     pub samples: u64,
+    /// Samples whose value is NaN.
     pub nan: u64,
+    /// Samples whose value is +∞.
     pub pos_inf: u64,
+    /// Samples whose value is −∞.
     pub neg_inf: u64,
-    /// Over finite values.
+    /// Smallest finite value (NaN when there is none).
     pub min: f64,
+    /// Largest finite value (NaN when there is none).
     pub max: f64,
+    /// Mean of the finite values (NaN when there is none).
     pub mean: f64,
     /// `(fraction, value)` pairs: 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99.
     pub quantiles: Vec<(f64, f64)>,
@@ -25,6 +31,7 @@ pub struct Stats {
     pub otsu: f64,
     /// Histogram over `[min, max]`: bin edges (`counts.len() + 1` of them) and counts.
     pub edges: Vec<f64>,
+    /// Finite values in each histogram bin, bin `k` covering `edges[k]` to `edges[k + 1]`.
     pub counts: Vec<u64>,
 }
 
@@ -204,6 +211,8 @@ fn binned_fine(
     })
 }
 
+/// Statistics of every value of a volume, read from `reader` positioned at slice 0: one pass for
+/// 8/16-bit integers (exact), two for other types (rewinding the reader in between).
 pub fn compute(reader: &mut dyn SliceReader, progress: &dyn Progress) -> Result<Stats> {
     let info = reader.info().clone();
     let scaling = info.scaling;

@@ -335,6 +335,8 @@ enum Sink {
 const GZIP_LEVEL: u32 = 6;
 
 impl AtomicOutput {
+    /// Starts writing `path`: creates a temporary file in its folder, whose content is compressed
+    /// from the first byte as `compression` says.
     pub fn create(path: &Path, compression: Compression) -> Result<AtomicOutput> {
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
@@ -366,10 +368,12 @@ impl AtomicOutput {
         };
     }
 
+    /// The target path, where the file appears on [`AtomicOutput::commit`].
     pub fn path(&self) -> &Path {
         &self.path
     }
 
+    /// Appends `bytes` to the temporary file (through the compressor, if compression has begun).
     pub fn write_all(&mut self, bytes: &[u8]) -> Result<()> {
         let r = match &mut self.sink {
             Sink::Plain(w) => w.write_all(bytes),

@@ -496,34 +496,31 @@ struct Scratch {
     mm: weighted::MmScratch,
 }
 
+/// The next generation of `stamps` (an entry is set in this generation when it equals the
+/// result); when the counter wraps, every stamp is cleared so none looks current.
+fn advance(generation: &mut u32, stamps: &mut [u32]) -> u32 {
+    *generation = generation.wrapping_add(1);
+    if *generation == 0 {
+        stamps.fill(0);
+        *generation = 1;
+    }
+    *generation
+}
+
 impl Scratch {
     /// A fresh stamp for the state arrays.
     fn next_generation(&mut self) -> u32 {
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 {
-            self.stamp.iter_mut().for_each(|s| *s = 0);
-            self.generation = 1;
-        }
-        self.generation
+        advance(&mut self.generation, &mut self.stamp)
     }
 
     /// A new region: forget which edges were usable.
     fn next_region(&mut self) {
-        self.region_generation = self.region_generation.wrapping_add(1);
-        if self.region_generation == 0 {
-            self.usable_stamp.iter_mut().for_each(|s| *s = 0);
-            self.region_generation = 1;
-        }
+        advance(&mut self.region_generation, &mut self.usable_stamp);
     }
 
     /// A fresh stamp for the marks of a new set of curves.
     fn next_mark_generation(&mut self) -> u32 {
-        self.mark_generation = self.mark_generation.wrapping_add(1);
-        if self.mark_generation == 0 {
-            self.mark_stamp.iter_mut().for_each(|s| *s = 0);
-            self.mark_generation = 1;
-        }
-        self.mark_generation
+        advance(&mut self.mark_generation, &mut self.mark_stamp)
     }
 
     fn ensure(&mut self, states: usize, vertices: usize) {
