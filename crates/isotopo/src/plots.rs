@@ -73,14 +73,7 @@ fn atomically(path: &Path, ext: &str, draw: impl FnOnce(&Path) -> Result<()>) ->
         .tempfile_in(dir)
         .map_err(|e| Error::io(path, "creating", e))?;
     draw(tmp.path())?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let _ = std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644));
-    }
-    tmp.persist(path)
-        .map_err(|e| Error::io(path, "moving into place", e.error))?;
-    Ok(())
+    crate::volume::persist(tmp, path)
 }
 
 const SIZE: (u32, u32) = (900, 600);

@@ -437,13 +437,7 @@ pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<MetaWriter> {
         (out, None)
     };
     Ok(MetaWriter {
-        samples: SampleWriter {
-            out,
-            endian,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
+        samples: SampleWriter::new(out, endian, source),
         path: path.to_path_buf(),
         detached,
         compressed,

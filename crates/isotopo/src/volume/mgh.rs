@@ -222,13 +222,7 @@ pub(crate) fn create(
     let mut out = AtomicOutput::create(path, compression)?;
     out.write_all(&header)?;
     Ok(MghWriter {
-        samples: SampleWriter {
-            out,
-            endian: Endian::Big,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
+        samples: SampleWriter::new(out, Endian::Big, source),
     })
 }
 

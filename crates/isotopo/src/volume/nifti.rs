@@ -5,10 +5,7 @@
 //! samples into values (a slope of 0 or NaN means no scaling).
 
 use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
-use super::{
-    Affine, Compression, DType, Endian, Format, FormatHeader, Samples, Scaling, SliceWriter,
-    VolumeInfo,
-};
+use super::{Affine, Compression, DType, Endian, Format, FormatHeader, Scaling, VolumeInfo};
 use crate::error::{Error, Result};
 use flate2::read::MultiGzDecoder;
 use std::io::Read;
@@ -659,39 +656,18 @@ fn nifti2_bytes(f: &Fresh) -> Vec<u8> {
     b
 }
 
-pub(crate) struct NiftiWriter {
-    samples: SampleWriter,
-}
-
 pub(crate) fn create(
     path: &Path,
     compression: Compression,
     source: &VolumeInfo,
-) -> Result<NiftiWriter> {
+) -> Result<SampleWriter> {
     let header = match &source.header {
         FormatHeader::Nifti(h) => h.clone(),
         _ => new_header(source),
     };
     let mut out = AtomicOutput::create(path, compression)?;
     out.write_all(&header.bytes)?;
-    Ok(NiftiWriter {
-        samples: SampleWriter {
-            out,
-            endian: header.endian,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
-    })
-}
-
-impl SliceWriter for NiftiWriter {
-    fn write_slice(&mut self, slice: &Samples) -> Result<()> {
-        self.samples.write_slice(slice)
-    }
-    fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
-        self.samples.out.commit()
-    }
+    Ok(SampleWriter::new(out, header.endian, source))
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
 use super::{
     check_dims, Affine, Compression, DType, Endian, Format, FormatHeader, ReadOptions, Samples,
-    Scaling, SliceReader, SliceWriter, VolumeInfo,
+    Scaling, SliceReader, VolumeInfo,
 };
 use crate::error::{Error, Result};
 use std::io::Read;
@@ -328,11 +328,7 @@ fn descr(t: DType) -> &'static str {
     }
 }
 
-pub(crate) struct NpyWriter {
-    samples: SampleWriter,
-}
-
-pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<NpyWriter> {
+pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<SampleWriter> {
     let [nx, ny, nz] = source.dims;
     let mut dict = format!(
         "{{'descr': '{}', 'fortran_order': True, 'shape': ({nx}, {ny}, {nz}), }}",
@@ -347,22 +343,5 @@ pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<NpyWriter> {
     head.extend_from_slice(&(dict.len() as u16).to_le_bytes());
     head.extend_from_slice(dict.as_bytes());
     out.write_all(&head)?;
-    Ok(NpyWriter {
-        samples: SampleWriter {
-            out,
-            endian: Endian::Little,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
-    })
-}
-
-impl SliceWriter for NpyWriter {
-    fn write_slice(&mut self, slice: &Samples) -> Result<()> {
-        self.samples.write_slice(slice)
-    }
-    fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
-        self.samples.out.commit()
-    }
+    Ok(SampleWriter::new(out, Endian::Little, source))
 }

@@ -634,13 +634,7 @@ pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<NrrdWriter> {
         (out, None)
     };
     Ok(NrrdWriter {
-        samples: SampleWriter {
-            out,
-            endian,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
+        samples: SampleWriter::new(out, endian, source),
         header,
     })
 }

@@ -3,8 +3,7 @@
 
 use super::stream::{AtomicOutput, DataLocation, SampleWriter, StreamReader};
 use super::{
-    Affine, Compression, DType, Endian, Format, FormatHeader, ReadOptions, Samples, Scaling,
-    SliceWriter, VolumeInfo,
+    Affine, Compression, DType, Endian, Format, FormatHeader, ReadOptions, Scaling, VolumeInfo,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -80,36 +79,19 @@ pub(crate) fn open(path: &Path, options: &ReadOptions) -> Result<StreamReader> {
     StreamReader::new(info, loc)
 }
 
-pub(crate) struct RawWriter {
-    samples: SampleWriter,
-}
-
 pub(crate) fn create(
     path: &Path,
     compression: Compression,
     source: &VolumeInfo,
-) -> Result<RawWriter> {
+) -> Result<SampleWriter> {
     let endian = if source.format == Format::Raw {
         source.endian
     } else {
         Endian::Little
     };
-    Ok(RawWriter {
-        samples: SampleWriter {
-            out: AtomicOutput::create(path, compression)?,
-            endian,
-            dtype: source.dtype,
-            slice_len: source.slice_len(),
-            buf: Vec::new(),
-        },
-    })
-}
-
-impl SliceWriter for RawWriter {
-    fn write_slice(&mut self, slice: &Samples) -> Result<()> {
-        self.samples.write_slice(slice)
-    }
-    fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
-        self.samples.out.commit()
-    }
+    Ok(SampleWriter::new(
+        AtomicOutput::create(path, compression)?,
+        endian,
+        source,
+    ))
 }

@@ -2,7 +2,8 @@
 //! offset, and writing files atomically (temp file + rename).
 
 use super::{
-    check_dims, Compression, DType, Endian, FormatHeader, Samples, SliceReader, VolumeInfo,
+    check_dims, Compression, DType, Endian, FormatHeader, Samples, SliceReader, SliceWriter,
+    VolumeInfo,
 };
 use crate::error::{Error, Result};
 use flate2::read::{MultiGzDecoder, ZlibDecoder};
@@ -395,18 +396,25 @@ impl AtomicOutput {
             Sink::Switching => unreachable!("sink left switching"),
         };
         let tmp = buffered.into_inner().map_err(|e| err(e.into_error()))?;
-        tmp.as_file().sync_all().map_err(err)?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let _ = tmp
-                .as_file()
-                .set_permissions(std::fs::Permissions::from_mode(0o644));
-        }
-        tmp.persist(&path)
-            .map_err(|e| Error::io(&path, "moving into place", e.error))?;
-        Ok(())
+        persist(tmp, &path)
     }
+}
+
+/// Moves a finished temporary file into place at `path`: synced to disk first, and readable by
+/// all (a temporary file is created readable by its owner only).
+pub(crate) fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
+    let err = |e: io::Error| Error::io(path, "writing", e);
+    tmp.as_file().sync_all().map_err(err)?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _ = tmp
+            .as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    tmp.persist(path)
+        .map_err(|e| Error::io(path, "moving into place", e.error))?;
+    Ok(())
 }
 
 /// Output of a format whose header is written before the samples: one atomic file, header bytes
@@ -420,6 +428,17 @@ pub(crate) struct SampleWriter {
 }
 
 impl SampleWriter {
+    /// Samples of `source`'s type and slice size, written to `out` in `endian` byte order.
+    pub fn new(out: AtomicOutput, endian: Endian, source: &VolumeInfo) -> SampleWriter {
+        SampleWriter {
+            out,
+            endian,
+            dtype: source.dtype,
+            slice_len: source.slice_len(),
+            buf: Vec::new(),
+        }
+    }
+
     pub fn write_slice(&mut self, slice: &Samples) -> Result<()> {
         if slice.dtype() != self.dtype || slice.len() != self.slice_len {
             return Err(Error::Internal(format!(
@@ -436,5 +455,15 @@ impl SampleWriter {
         let r = self.out.write_all(&buf);
         self.buf = buf;
         r
+    }
+}
+
+/// A format whose header goes before the samples and nothing after them (NIfTI, NumPy, raw).
+impl SliceWriter for SampleWriter {
+    fn write_slice(&mut self, slice: &Samples) -> Result<()> {
+        SampleWriter::write_slice(self, slice)
+    }
+    fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
+        self.out.commit()
     }
 }

@@ -260,21 +260,8 @@ impl SliceWriter for TiffWriter {
     }
 
     fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
-        let path = self.path;
-        let err = |e: std::io::Error| Error::io(&path, "writing", e);
         // The encoder writes unbuffered: every page is in the file already.
         drop(self.encoder);
-        let tmp = self.tmp;
-        tmp.as_file().sync_all().map_err(err)?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let _ = tmp
-                .as_file()
-                .set_permissions(std::fs::Permissions::from_mode(0o644));
-        }
-        tmp.persist(&path)
-            .map_err(|e| Error::io(&path, "moving into place", e.error))?;
-        Ok(())
+        super::stream::persist(self.tmp, &self.path)
     }
 }
