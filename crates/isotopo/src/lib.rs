@@ -32,6 +32,10 @@
 //!
 //! `examples/simplify_in_memory.rs` does the same and takes the edited samples back.
 //!
+//! Progress goes through [`progress::Progress`], which a caller implements (the command line
+//! draws bars); its `cancelled` is asked between slices, planes and handles, and a job then stops
+//! with [`Error::Cancelled`], having written nothing. The library never prints.
+//!
 //! Data flows one way, one module per stage:
 //!
 //! ```text
