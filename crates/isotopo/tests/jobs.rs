@@ -273,3 +273,37 @@ fn a_caller_can_cancel_every_job() {
     assert!(output.exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// tau is a strict bound, as documented: a handle whose size (its shorter loop, in edges) is
+/// exactly tau is kept, and one edge more removes it. The crate doc's ball with a one-voxel ring
+/// fused to its side.
+#[test]
+fn a_handle_of_size_tau_is_kept() {
+    let shape = |x: usize, y: usize, z: usize| {
+        let d = |a: usize, c: f64| a as f64 - c;
+        let ball = d(x, 8.0).hypot(d(y, 8.0)).hypot(d(z, 8.0)) < 5.0;
+        let ring = z == 8 && d(x, 13.0).abs().max(d(y, 8.0).abs()) == 1.0;
+        ball || ring
+    };
+    let volume = InMemoryVolume::from_mask([18, 17, 17], shape);
+    let surface = SurfaceOptions {
+        iso: 0.5,
+        ..SurfaceOptions::default()
+    };
+    let analyze = isotopo::AnalyzeOptions {
+        surface,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    let analysis = isotopo::analyze(Source::from(volume.clone()), &analyze, &NoProgress).unwrap();
+    assert_eq!(analysis.loops.len(), 1);
+    let size = analysis.loops[0].size().expect("the handle is measured") as f64;
+    for (tau, b1) in [(size, 1), (size + 1.0, 0)] {
+        let opts = SimplifyOptions {
+            surface,
+            tau,
+            ..SimplifyOptions::default()
+        };
+        let done = isotopo::simplify(Source::from(volume.clone()), &opts, &NoProgress).unwrap();
+        assert_eq!(done.after.b1, b1, "tau {tau}, handle size {size}");
+    }
+}
