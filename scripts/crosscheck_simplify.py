@@ -9,12 +9,17 @@ code with isotopo (nibabel / pynrrd to read, scikit-image for topology, numpy fo
    fits); an `isotopo analyze` of the output finds no handle below tau;
 3. with `--fill-only` no sample is set outside, with `--cut-only` none inside, and a handle is
    kept only for its mode or because no wall of the allowed kind is accepted;
-4. only samples of the walls change, each where its kind of wall reaches from its own loop: a
+4. only samples of the walls (and those of the well-composed step, listed in the report; and
+   floating-point samples exactly at the isovalue, moved just outside) change, each where its
+   kind of wall reaches from its own loop: a
    fan wall (or a peeled one) within its thickness of the loop's fan, whose points lie within a
    quarter of the loop's length of the loop; a wall peeled in a box (`peeled_box`) inside that box;
    one peeled in that box moved along the other loop (`peeled_along`) within a box that size round
    a point of the handle's box; every other sample is bit-identical;
-5. simplify run again on its own output changes nothing.
+5. simplify run again on its own output changes nothing;
+6. (the runs at tau 20 and inf) the output meshed by scikit-image and VTK and the solid under
+   the other connectivity: critical cells as reported, and where the report says well-composed
+   one genus for all (scripts/crosscheck_meshers.py).
 
 Runs (volume, tau, connectivity, mode, axis, inside):
 - always: every volume in ../shared/data at tau 20 and inf (connectivity 6, both, z);
@@ -100,14 +105,18 @@ def solid(values, iso, inside):
 
 
 def wall_reach_failures(r, flipped, what):
-    """Check 4: each changed sample belongs to a wall, within the reach of that wall's loop."""
+    """Check 4: each changed sample belongs to a wall, within the reach of that wall's loop, or
+    was flipped by the well-composed step (listed in the report)."""
     failures = []
     owner = {}
     for i, h in enumerate(r["removed"]):
         for q in h["samples"]:
             owner[tuple(q)] = i
+    composed = {tuple(q) for q in (r.get("well_composed") or {}).get("samples", [])}
     for q in flipped:
         i = owner.get(tuple(q))
+        if i is None and tuple(q) in composed:
+            continue
         if i is None:
             failures.append(f"{what}: changed sample {q.tolist()} flipped by no wall")
             break
@@ -160,6 +169,14 @@ def check(run, tmp, timeout=None):
         failures.append(f"{what}: genus before {r['genus_before']}, oracle {b_before[1]}")
     if b_after[1] != r["genus_after"] or b_after[1] != len(r["kept"]):
         failures.append(f"{what}: oracle genus after {b_after[1]}, report {r['genus_after']}, kept {len(r['kept'])}")
+    meshers = ""
+    if run in always_runs():
+        # 6. One topology for every mesher (scripts/crosscheck_meshers.py).
+        from crosscheck_meshers import mesher_failures
+
+        f, g = mesher_failures(after_values, r, float(iso), what, inside)
+        failures += f
+        meshers = f"| skimage {g['skimage']} vtk {g['vtk']} c26 {g['c26']} critical {sum(g['critical'])} "
     # 2. tau inf: genus 0; finite tau: certified, kept only for size.
     if mode == "both":
         if tau == "inf" and b_after[1] != 0:
@@ -181,6 +198,13 @@ def check(run, tmp, timeout=None):
     # 4. Changed samples: values differ only where the side changed, within their walls' reach.
     differs = before_values != after_values
     flips = before != after
+    # Floating-point samples exactly at the isovalue move just outside (well-composed output).
+    moved = (before_values == float(iso)) & (after_values != before_values) & ~flips
+    if r.get("at_iso_moved") is not True and moved.any():
+        failures.append(f"{what}: {int(moved.sum())} samples at the isovalue moved, report says none")
+    if int(moved.sum()) > (r.get("samples_at_iso") or 0):
+        failures.append(f"{what}: {int(moved.sum())} samples at the isovalue moved, report {r.get('samples_at_iso')}")
+    differs &= ~moved
     if (differs & ~flips).any():
         failures.append(f"{what}: {int((differs & ~flips).sum())} samples changed value without changing side")
     flipped = np.argwhere(flips)
@@ -204,7 +228,7 @@ def check(run, tmp, timeout=None):
         walls[h["wall"]] = walls.get(h["wall"], 0) + 1
     print(
         f"{what:<54} | {b_before[1]:>5} -> {b_after[1]:<4} b0 {b_before[0]}={b_after[0]} b2 {b_before[2]}={b_after[2]} "
-        f"| changed {len(flipped):>6} | walls {walls} | {secs:6.1f} s{'' if not failures else '   <-- FAILED'}",
+        f"| changed {len(flipped):>6} | walls {walls} {meshers}| {secs:6.1f} s{'' if not failures else '   <-- FAILED'}",
         flush=True,
     )
     return failures

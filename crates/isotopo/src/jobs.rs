@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::grid::{Axis, MaskVolume};
 use crate::loops::{HandleLoops, Limits, Metric};
 use crate::progress::Progress;
-use crate::simplify::{Outcome, SimplifyOptions, WallValues};
+use crate::simplify::{Outcome, SimplifyOptions, SliceEditor, WallValues};
 use crate::sweep::HandleReport;
 use crate::topology::genus::{GenusReport, SurfaceOptions};
 use crate::volume::{self, InMemoryVolume, ReadOptions, SliceReader, VolumeInfo};
@@ -71,6 +71,9 @@ pub struct Topology {
     pub info: VolumeInfo,
     /// b0, b1 (the total genus), b2, the Euler characteristic and the surfaces.
     pub solid: GenusReport,
+    /// Where meshers may disagree: critical configurations, samples at the isovalue, and the
+    /// Betti numbers under the other connectivity.
+    pub meshers: crate::topology::genus::Agreement,
     /// Seconds the pass took, reading included.
     pub seconds: f64,
 }
@@ -82,10 +85,11 @@ pub fn genus(source: Source, opts: &SurfaceOptions, progress: &dyn Progress) -> 
     let mut input = source.open()?;
     let info = input.info().clone();
     let t = Instant::now();
-    let solid = crate::topology::genus(input.as_mut(), opts, progress)?;
+    let (solid, meshers) = crate::topology::genus(input.as_mut(), opts, progress)?;
     Ok(Topology {
         info,
         solid,
+        meshers,
         seconds: t.elapsed().as_secs_f64(),
     })
 }
@@ -105,6 +109,7 @@ impl Topology {
             "b2": r.b2,
             "chi": r.chi,
             "surfaces": r.surfaces,
+            "meshers": self.meshers,
             "seconds": self.seconds,
         })
     }
@@ -347,15 +352,23 @@ pub struct Simplified {
     pub before: GenusReport,
     /// Topology of the solid after: `b1` is the number of handles kept.
     pub after: GenusReport,
-    /// The handles removed and kept, and every sample changed.
+    /// The same Betti numbers under the other connectivity (equal to `after` when the output
+    /// is well-composed).
+    pub after_other: GenusReport,
+    /// The handles removed and kept, every sample changed, and what making the output
+    /// well-composed did.
     pub outcome: Outcome,
     /// The values written into the changed samples (just inside / just outside the isovalue,
     /// in the input's sample type).
     pub wall_values: WallValues,
+    /// What writing the output (or [`Simplified::edited`]) changed besides the edits: samples at
+    /// the isovalue, the largest move. `None` until then.
+    pub written: Option<crate::simplify::Written>,
     /// Seconds spent reading (classifying the samples).
     pub seconds_read: f64,
     /// Seconds spent simplifying (every pass, the certificate included).
     pub seconds_simplify: f64,
+    classifier: crate::topology::Classifier,
     input: Box<dyn SliceReader>,
 }
 
@@ -415,13 +428,33 @@ pub fn simplify(
             outcome.kept.len()
         )));
     }
-    let wall_values = WallValues::new(info.dtype, &surface.classifier(&info));
+    let after_other = masks.genus(surface.connectivity.other())?;
+    let betti = |g: &GenusReport| (g.b0, g.b1, g.b2);
+    if outcome
+        .composition
+        .as_ref()
+        .is_some_and(|c| c.well_composed())
+        && betti(&after) != betti(&after_other)
+    {
+        return Err(Error::Internal(format!(
+            "the output is well-composed but its Betti numbers differ between connectivity {} {:?} and {} {:?}; nothing written",
+            surface.connectivity.number(),
+            betti(&after),
+            surface.connectivity.other().number(),
+            betti(&after_other)
+        )));
+    }
+    let classifier = surface.classifier(&info);
+    let wall_values = WallValues::new(info.dtype, &classifier);
     Ok(Simplified {
+        classifier,
         info,
         before,
         after,
+        after_other,
         outcome,
         wall_values,
+        written: None,
         seconds_read,
         seconds_simplify,
         input,
@@ -434,34 +467,53 @@ impl Simplified {
     pub fn write(&mut self, path: impl AsRef<Path>, progress: &dyn Progress) -> Result<()> {
         let path = path.as_ref();
         volume::check_output_path(path, &self.info)?;
-        crate::simplify::write_edited(
-            self.input.as_mut(),
-            path,
-            &self.outcome.edits,
-            &self.wall_values,
-            progress,
-        )
+        let edits = &self.outcome.edits;
+        let move_at_iso = self.moves_at_iso();
+        let editor = SliceEditor::new(edits, &self.wall_values, self.classifier, move_at_iso);
+        let written = crate::simplify::write_edited(self.input.as_mut(), path, editor, progress)?;
+        self.written = Some(written);
+        Ok(())
     }
 
     /// The edited volume in memory (the input's sample type and grid).
     pub fn edited(&mut self) -> Result<InMemoryVolume> {
         self.input.rewind()?;
         let mut out = InMemoryVolume::from_reader(self.input.as_mut())?;
-        for &([x, y, z], inside) in &self.outcome.edits {
-            let v = if inside {
-                self.wall_values.inside
-            } else {
-                self.wall_values.outside
-            };
-            let v = v.ok_or_else(|| {
-                Error::Internal(format!(
-                    "no wall value representable in {}",
-                    self.info.dtype
-                ))
-            })?;
-            out.set(x as usize, y as usize, z as usize, v);
+        let edits = &self.outcome.edits;
+        let mut editor = SliceEditor::new(
+            edits,
+            &self.wall_values,
+            self.classifier,
+            self.moves_at_iso(),
+        );
+        let nx = self.info.dims[0];
+        for (z, slice) in out.slices.iter_mut().enumerate() {
+            editor.apply(z, nx, slice)?;
         }
+        self.written = Some(editor.written);
         Ok(out)
+    }
+
+    /// The isovalue to give another mesher (VTK, scikit-image) for the surface isotopo
+    /// simplified: the isovalue itself, or for integer samples with the isovalue on a stored
+    /// value, halfway to the next stored value inside (the same samples inside, none on it).
+    pub fn mesh_iso(&self) -> f64 {
+        let c = &self.classifier;
+        let raw_iso = (c.iso - c.scaling.inter) / c.scaling.slope;
+        if self.info.dtype.is_float() || raw_iso.fract() != 0.0 {
+            return c.iso;
+        }
+        let half = c.scaling.slope.abs() / 2.0;
+        match c.inside {
+            crate::topology::Inside::Above => c.iso + half,
+            crate::topology::Inside::Below => c.iso - half,
+        }
+    }
+
+    /// Whether samples at the isovalue are moved outside when writing (see
+    /// [`SimplifyOptions::well_composed`]).
+    fn moves_at_iso(&self) -> bool {
+        self.outcome.composition.is_some() && self.info.dtype.is_float()
     }
 
     /// The report (the CLI's `--report`): the outcome, both topologies, the options and timings.
@@ -487,6 +539,22 @@ impl Simplified {
             "mode": opts.mode,
             "max_ratio": opts.max_ratio,
             "wall_values": self.wall_values,
+            "well_composed": self.outcome.composition.as_ref().map(|c| serde_json::json!({
+                "critical_before": c.before,
+                "critical_left": c.left,
+                "well_composed": c.well_composed(),
+                "samples_flipped": c.flips.len(),
+                "pair_moves": c.pairs,
+                "samples": c.flips.iter().map(|f| f.0).collect::<Vec<_>>(),
+            })),
+            "other_connectivity": surface.connectivity.other().number(),
+            "b0_after_other": self.after_other.b0,
+            "genus_after_other": self.after_other.b1,
+            "b2_after_other": self.after_other.b2,
+            "samples_at_iso": self.written.map(|w| w.samples_at_iso),
+            "at_iso_moved": self.written.map(|w| w.at_iso_moved),
+            "largest_move": self.written.map(|w| w.largest_move),
+            "mesh_iso": self.mesh_iso(),
             "seconds_read": self.seconds_read,
             "seconds_simplify": self.seconds_simplify,
         });

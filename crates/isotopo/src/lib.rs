@@ -65,6 +65,7 @@
 #![warn(missing_docs)]
 
 pub(crate) mod closure;
+pub mod compose;
 pub mod error;
 pub mod grid;
 pub mod jobs;

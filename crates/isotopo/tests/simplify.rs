@@ -216,7 +216,16 @@ fn check(
             flipped_by.insert(q, i);
         }
     }
+    // The well-composed step's samples (checked by tests/compose.rs) are listed apart.
+    let composed: std::collections::HashSet<[i64; 3]> = out
+        .composition
+        .iter()
+        .flat_map(|c| c.flips.iter().map(|f| f.0))
+        .collect();
     for &(q, _) in &out.edits {
+        if composed.contains(&q) && !flipped_by.contains_key(&q) {
+            continue;
+        }
         let Some(&i) = flipped_by.get(&q) else {
             return Err(format!("{what}: changed sample {q:?} flipped by no wall"));
         };
@@ -267,7 +276,7 @@ fn check(
         }
     }
     let reported: usize = out.removed.iter().map(|r| r.samples_changed).sum();
-    if out.edits.len() > reported {
+    if out.edits.len() > reported + composed.len() {
         return Err(format!(
             "{what}: {} samples changed, walls flipped {reported}",
             out.edits.len()
@@ -284,6 +293,16 @@ fn check(
             return Err(format!(
                 "{what}: {q:?} set {}",
                 if inside { "inside" } else { "outside" }
+            ));
+        }
+    }
+    // 7. Well-composed (by default): where no critical cell is left, the other connectivity
+    // sees the same topology.
+    if out.composition.as_ref().is_some_and(|c| c.well_composed()) {
+        let other = betti(&after_bits, dims, conn.other());
+        if (other.0, other.1, other.2) != (after.0, after.1, after.2) {
+            return Err(format!(
+                "{what}: well-composed, but the other connectivity gives {other:?}, not {after:?}"
             ));
         }
     }
@@ -500,7 +519,10 @@ fn max_ratio_keeps_long_skinny_handles() {
         opts.max_ratio = Some(2.0);
         let mut m = masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
-        assert!(out.edits.is_empty());
+        assert!(out.removed.is_empty());
+        // What changed is the well-composed step's.
+        let composed = out.composition.as_ref().map_or(0, |c| c.flips.len());
+        assert_eq!(out.edits.len(), composed);
         assert_eq!(out.kept.len(), 1);
         assert_eq!(out.kept[0].reason, KeepReason::Ratio);
     }

@@ -43,6 +43,25 @@ pub(crate) fn run(a: GenusArgs) -> Result<()> {
         "solid       b0 = {} components, b1 = {} handles (total genus), b2 = {} cavities, chi = {}",
         r.b0, r.b1, r.b2, r.chi
     );
+    let m = &topology.meshers;
+    if m.critical.total() == 0 && m.samples_at_iso == 0 {
+        println!(
+            "meshers     agree: well-composed, no sample at the isovalue (connectivity {} gives the same)",
+            m.other_connectivity
+        );
+    } else {
+        println!(
+            "meshers     may disagree: {} critical faces and {} cubes, {} samples at the isovalue; \
+             connectivity {}: b0 = {}, b1 = {}, b2 = {} (simplify makes its output well-composed)",
+            group(m.critical.faces),
+            group(m.critical.cubes),
+            group(m.samples_at_iso),
+            m.other_connectivity,
+            m.b0,
+            m.b1,
+            m.b2
+        );
+    }
     let with_genus = r.surfaces.iter().filter(|s| s.genus > 0).count();
     println!(
         "surfaces    {} ({} enclosing material, {} cavities; {} with genus > 0)",

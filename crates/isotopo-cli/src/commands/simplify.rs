@@ -39,6 +39,11 @@ pub(crate) struct SimplifyArgs {
     /// Only remove material: close loops around material (handle pinch).
     #[arg(long)]
     cut_only: bool,
+    /// Leave the output as the walls make it: do not make it well-composed (by default no unit
+    /// face shows one diagonal and no unit cube two opposite corners alone, and floating-point
+    /// samples at the isovalue move just outside, so every mesher sees one topology).
+    #[arg(long)]
+    no_well_composed: bool,
     /// Keep long skinny handles: those whose longer loop is more than R times the shorter.
     #[arg(long, value_name = "R")]
     max_ratio: Option<f64>,
@@ -60,8 +65,10 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
         (None, None) => return Err(Error::usage("give --tau or --tau-mm")),
     };
-    if tau.is_nan() || tau <= 0.0 {
-        return Err(Error::usage(format!("{flag} must be positive (or inf)")));
+    if tau.is_nan() || tau < 0.0 {
+        return Err(Error::usage(format!(
+            "{flag} must be 0 (remove no handle: only make the output well-composed), positive or inf"
+        )));
     }
     if let Some(r) = a.max_ratio {
         if r.is_nan() || r < 1.0 {
@@ -82,6 +89,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         },
         max_ratio: a.max_ratio,
         max_slices: a.sweep.max_slices,
+        well_composed: !a.no_well_composed,
     };
     // Every output is checked before the work starts.
     let reader = a.input.open()?;
@@ -222,16 +230,20 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         ),
         None => {}
     }
+    let composed = outcome.composition.as_ref().map_or(0, |c| c.flips.len());
     println!(
-        "samples     {} changed ({} filled, {} cut), all within {:.1} voxels ({:.1} mm) of a closed loop; wall values: inside {}, outside {}",
+        "samples     {} changed ({} filled, {} cut): {} by walls, all within {:.1} voxels ({:.1} mm) of a closed loop, {} by the well-composed step; wall values: inside {}, outside {}",
         group(outcome.edits.len() as u64),
         group(filled as u64),
         group(cut as u64),
+        group(outcome.edits.len().saturating_sub(composed) as u64),
         max_distance,
         max_distance_mm,
+        group(composed as u64),
         values.inside.map(num).unwrap_or_else(|| "-".into()),
         values.outside.map(num).unwrap_or_else(|| "-".into())
     );
+    print_composition(&done);
     println!(
         "sweep       {} passes, {} rewinds, {} closures refused by the local check",
         outcome.passes, outcome.rewinds, outcome.refused
@@ -248,4 +260,46 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         secs, t_read, t_simplify, t_write
     );
     Ok(())
+}
+
+/// The well-composed step's line, and what another mesher needs to see the same surface.
+fn print_composition(done: &isotopo::Simplified) {
+    let other = done.after_other.b1;
+    if let Some(c) = &done.outcome.composition {
+        println!(
+            "composed    {} critical faces and {} cubes before, {} left ({}): {} samples flipped",
+            group(c.before.faces),
+            group(c.before.cubes),
+            group(c.left.total()),
+            if c.well_composed() {
+                "well-composed: every mesher sees genus ".to_string() + &group(done.after.b1)
+            } else {
+                format!(
+                    "NOT well-composed: genus {} under the other connectivity",
+                    group(other)
+                )
+            },
+            group(c.flips.len() as u64)
+        );
+    } else {
+        println!(
+            "composed    not asked (--no-well-composed): genus {} under the other connectivity",
+            group(other)
+        );
+    }
+    if let Some(w) = done.written.filter(|w| w.samples_at_iso > 0) {
+        if w.at_iso_moved {
+            println!(
+                "at iso      {} samples were exactly at the isovalue: moved just outside",
+                group(w.samples_at_iso)
+            );
+        } else {
+            println!(
+                "at iso      {} samples are exactly at the isovalue (isotopo counts them outside, \
+                 VTK inside): mesh the output at {} for the same surface in every tool",
+                group(w.samples_at_iso),
+                num(done.mesh_iso())
+            );
+        }
+    }
 }

@@ -5,6 +5,7 @@
 
 mod fractions;
 mod planes;
+pub(crate) mod simple;
 
 pub use fractions::EdgeFractions;
 pub use planes::{window_for, Axis, Frame, MaskVolume, DEFAULT_WINDOW_BYTES, MIN_WINDOW};

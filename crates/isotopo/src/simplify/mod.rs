@@ -45,7 +45,8 @@ use plan::{loop_box, overlaps, plan};
 use removal::{removal, Closure};
 use walls::{close_handle, Refused};
 use write::final_edits;
-pub use write::{write_edited, WallValues};
+pub(crate) use write::{write_edited, SliceEditor};
+pub use write::{WallValues, Written};
 
 /// Which closures are allowed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -94,6 +95,13 @@ pub struct SimplifyOptions {
     /// Planes held in memory at once (the rest wait in a scratch file); by default as many as
     /// fit in 16 MiB, the whole volume when it fits; `Some(0)`: the whole volume.
     pub max_slices: Option<usize>,
+    /// Make the output well-composed (by default, yes): after the walls, flip simple samples
+    /// until no unit face shows one diagonal and no unit cube two opposite corners alone
+    /// ([`crate::compose`]), and move floating-point samples equal to the isovalue just outside,
+    /// so that connectivity 6 and 26, VTK and scikit-image see one topology. Integer samples at
+    /// the isovalue are left (they may be a label); the report gives the isovalue between
+    /// stored values that meshes the same surface without them.
+    pub well_composed: bool,
 }
 
 impl Default for SimplifyOptions {
@@ -106,6 +114,7 @@ impl Default for SimplifyOptions {
             mode: Mode::Both,
             max_ratio: None,
             max_slices: None,
+            well_composed: true,
         }
     }
 }
@@ -114,8 +123,10 @@ impl SimplifyOptions {
     /// Refuses options no simplification can follow: tau not positive, a ratio below 1, an
     /// isovalue that is not a number.
     pub fn validate(&self) -> Result<()> {
-        if self.tau.is_nan() || self.tau <= 0.0 {
-            return Err(Error::usage("tau must be positive (or inf)"));
+        if self.tau.is_nan() || self.tau < 0.0 {
+            return Err(Error::usage(
+                "tau must be 0 (no handle removed: only a well-composed output), positive or inf",
+            ));
         }
         if self.max_ratio.is_some_and(|r| r.is_nan() || r < 1.0) {
             return Err(Error::usage("the maximum ratio must be at least 1"));
@@ -252,6 +263,10 @@ pub struct Outcome {
     pub intra_ribbon: usize,
     /// Full sweeps run (the last one closed nothing, unless the limit was reached).
     pub passes: usize,
+    /// What making the output well-composed did (`None` when turned off): critical cells before
+    /// and left, and the samples it flipped that end on the other side (original coordinates;
+    /// they are among `edits`).
+    pub composition: Option<crate::compose::Composition>,
     /// With a finite tau (both operations, no `--max-ratio`): is it proven that the result has
     /// no non-separating loop shorter than tau? Every kept handle has two closed curves that no
     /// loop below tau crosses an odd number of times, and together they span every loop of the
@@ -328,7 +343,15 @@ pub fn simplify(
 ) -> Result<Outcome> {
     let mut run = Run::new(opts, affine, progress);
     while run.passes < MAX_PASSES {
-        if run.sweep_pass(vol)? == 0 {
+        let closed = run.sweep_pass(vol)?;
+        // Well-composed after every pass that changed something, so that the last pass (the
+        // one that closes nothing) analyses and certifies the volume as it is written.
+        let flipped = if opts.well_composed {
+            run.compose(vol)?
+        } else {
+            0
+        };
+        if closed == 0 && flipped == 0 {
             break;
         }
         if run.passes == MAX_PASSES {
@@ -362,6 +385,9 @@ struct Run<'a> {
     basis: Vec<(i64, Vec<Vec<Vertex>>)>,
     /// First flip of each sample: local coordinates -> its original side.
     original: FastMap<[i64; 3], bool>,
+    /// What the well-composed steps did: counts before the first and after the last, and every
+    /// sample they flipped (local coordinates).
+    composition: Option<(crate::compose::Composition, FastMap<[i64; 3], ()>)>,
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
@@ -384,6 +410,7 @@ impl<'a> Run<'a> {
             kept: Vec::new(),
             basis: Vec::new(),
             original: FastMap::default(),
+            composition: None,
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
@@ -635,11 +662,62 @@ impl<'a> Run<'a> {
         vol.follow_sweep(sweeper.next)
     }
 
+    /// Makes the volume well-composed (see [`crate::compose`]); returns how many samples it
+    /// flipped. Fill-only flips only to inside, cut-only only to outside.
+    fn compose(&mut self, vol: &mut MaskVolume) -> Result<usize> {
+        let only = match self.opts.mode {
+            Mode::Both => None,
+            Mode::FillOnly => Some(true),
+            Mode::CutOnly => Some(false),
+        };
+        let c = crate::compose::compose(vol, self.conn, only, self.progress)?;
+        let flipped = c.flips.len();
+        let near: Vec<BBox> = c
+            .flips
+            .iter()
+            .map(|&(q, _)| BBox {
+                min: q.map(|x| x - 1),
+                max: q.map(|x| x + 1),
+            })
+            .collect();
+        self.lasting.forget_near(&near);
+        let (total, samples) = self.composition.get_or_insert_with(|| {
+            (
+                crate::compose::Composition {
+                    before: c.before,
+                    ..Default::default()
+                },
+                FastMap::default(),
+            )
+        });
+        for &(q, inside) in &c.flips {
+            self.original.entry(q).or_insert(!inside);
+            samples.insert(q, ());
+        }
+        total.left = c.left;
+        total.pairs += c.pairs;
+        Ok(flipped)
+    }
+
     fn outcome(self, vol: &mut MaskVolume) -> Outcome {
+        let edits = final_edits(vol, self.original);
+        let composition = self.composition.map(|(mut c, samples)| {
+            let composed: FastMap<[i64; 3], ()> = samples
+                .into_keys()
+                .map(|q| (vol.frame.to_original_i(q), ()))
+                .collect();
+            c.flips = edits
+                .iter()
+                .filter(|e| composed.contains_key(&e.0))
+                .copied()
+                .collect();
+            c
+        });
         Outcome {
+            composition,
             removed: self.removed,
             kept: self.kept.into_iter().map(|(_, k)| k).collect(),
-            edits: final_edits(vol, self.original),
+            edits,
             intra_ribbon: self.intra_ribbon,
             passes: self.passes,
             certified: self.certified,

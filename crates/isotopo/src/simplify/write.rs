@@ -29,8 +29,9 @@ pub(super) fn final_edits(vol: &mut MaskVolume, original: FastMap<[i64; 3], bool
 }
 
 /// Stored values written for inside and outside samples: the representable values nearest the
-/// isovalue on each side (for floating-point samples, a relative margin of 2^-10 keeps the new
-/// surface from sitting exactly on the samples).
+/// isovalue strictly on each side (never the isovalue itself, which meshers disagree on: isotopo
+/// counts it outside, VTK inside); for floating-point samples, a relative margin of 2^-10 keeps
+/// the new surface from sitting exactly on the samples.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct WallValues {
     /// Written for samples set inside (`None`: no such value in the type).
@@ -52,6 +53,7 @@ impl WallValues {
                 && raw <= hi
                 && round_trip(dtype, raw) == raw
                 && classifier.inside_raw(raw) == inside
+                && s.apply(raw) != classifier.iso
         };
         let pick = |inside: bool| -> Option<f64> {
             let mut candidates: Vec<f64> = Vec::new();
@@ -87,46 +89,128 @@ fn round_trip(dtype: DType, v: f64) -> f64 {
     }
 }
 
-/// Streams `reader` to a new file `out`, with the edited samples set to the wall values.
-pub fn write_edited(
+/// What writing changed besides the listed edits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Written {
+    /// Samples exactly at the isovalue (isotopo counts them outside, VTK inside), besides
+    /// those edited.
+    pub samples_at_iso: u64,
+    /// Whether they were moved to the outside value (floating-point samples, well-composed
+    /// output; see [`SimplifyOptions::well_composed`](super::SimplifyOptions::well_composed)).
+    pub at_iso_moved: bool,
+    /// The largest change of a sample's value, edits included (after the header's scaling).
+    pub largest_move: f64,
+}
+
+/// Edits slices in order: the listed edits set to the wall values, the samples at the isovalue
+/// counted and, with `move_at_iso`, moved to the outside value.
+pub(crate) struct SliceEditor<'a> {
+    edits: &'a [Edit],
+    next: usize,
+    values: &'a WallValues,
+    classifier: Classifier,
+    move_at_iso: bool,
+    /// What has been changed so far.
+    pub written: Written,
+}
+
+impl<'a> SliceEditor<'a> {
+    /// An editor for `edits` (sorted by z, then y, then x).
+    pub fn new(
+        edits: &'a [Edit],
+        values: &'a WallValues,
+        classifier: Classifier,
+        move_at_iso: bool,
+    ) -> SliceEditor<'a> {
+        SliceEditor {
+            edits,
+            next: 0,
+            values,
+            classifier,
+            move_at_iso,
+            written: Written::default(),
+        }
+    }
+
+    /// Edits slice `z` (`nx` samples per row), the slices being given in order.
+    pub fn apply(&mut self, z: usize, nx: usize, slice: &mut Samples) -> Result<()> {
+        let mut edited: Vec<usize> = Vec::new();
+        while self.next < self.edits.len() && self.edits[self.next].0[2] == z as i64 {
+            let ([x, y, _], inside) = self.edits[self.next];
+            let i = y as usize * nx + x as usize;
+            let v = self.value(inside, slice)?;
+            self.set(slice, i, v);
+            edited.push(i);
+            self.next += 1;
+        }
+        let outside = if self.move_at_iso {
+            Some(self.value(false, slice)?)
+        } else {
+            None
+        };
+        let scaling = self.classifier.scaling;
+        for i in 0..slice.len() {
+            if scaling.apply(slice.get_f64(i)) == self.classifier.iso
+                && edited.binary_search(&i).is_err()
+            {
+                self.written.samples_at_iso += 1;
+                if let Some(v) = outside {
+                    self.set(slice, i, v);
+                    self.written.at_iso_moved = true;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Sets sample `i` to the stored value `raw`, keeping the largest move.
+    fn set(&mut self, slice: &mut Samples, i: usize, raw: f64) {
+        let scaling = self.classifier.scaling;
+        let moved = (scaling.apply(raw) - scaling.apply(slice.get_f64(i))).abs();
+        if moved.is_finite() {
+            self.written.largest_move = self.written.largest_move.max(moved);
+        }
+        slice.set_f64(i, raw);
+    }
+
+    fn value(&self, inside: bool, slice: &Samples) -> Result<f64> {
+        if inside {
+            self.values.inside
+        } else {
+            self.values.outside
+        }
+        .ok_or_else(|| {
+            Error::Internal(format!(
+                "no {} value representable in {}",
+                if inside { "inside" } else { "outside" },
+                slice.dtype()
+            ))
+        })
+    }
+}
+
+/// Streams `reader` to a new file `out`, edited by `editor`; returns what it changed.
+pub(crate) fn write_edited(
     reader: &mut dyn SliceReader,
     out: &Path,
-    edits: &[Edit],
-    values: &WallValues,
+    mut editor: SliceEditor,
     progress: &dyn Progress,
-) -> Result<()> {
+) -> Result<Written> {
     reader.rewind()?;
     let info: VolumeInfo = reader.info().clone();
-    let [nx, ny, nz] = info.dims;
+    let [nx, _, nz] = info.dims;
     let mut writer = crate::volume::create(out, &info)?;
     let mut slice = Samples::new(info.dtype);
-    let mut next = 0;
     progress.start("write", nz as u64);
     for z in 0..nz {
         reader.read_slice(&mut slice)?;
-        while next < edits.len() && edits[next].0[2] == z as i64 {
-            let ([x, y, _], inside) = edits[next];
-            let v = if inside {
-                values.inside
-            } else {
-                values.outside
-            }
-            .ok_or_else(|| {
-                Error::Internal(format!(
-                    "no {} value representable in {}",
-                    if inside { "inside" } else { "outside" },
-                    info.dtype
-                ))
-            })?;
-            debug_assert!((x as usize) < nx && (y as usize) < ny);
-            slice.set_f64(y as usize * nx + x as usize, v);
-            next += 1;
-        }
+        editor.apply(z, nx, &mut slice)?;
         writer.write_slice(&slice)?;
         progress.advance(1);
         progress.check()?;
     }
     progress.finish();
     let info = reader.info().clone();
-    writer.finish(&info)
+    writer.finish(&info)?;
+    Ok(editor.written)
 }

@@ -47,6 +47,14 @@ impl Connectivity {
         }
     }
 
+    /// The other connectivity (the complement's).
+    pub fn other(self) -> Connectivity {
+        match self {
+            Connectivity::Six => Connectivity::TwentySix,
+            Connectivity::TwentySix => Connectivity::Six,
+        }
+    }
+
     /// Corners of this state form the pieces ("group" corners): inside under 6, outside under 26.
     #[inline]
     pub fn group_state(self) -> bool {

@@ -8,6 +8,7 @@
 //! total genus is `b1` (docs/ARCHITECTURE.md, facts).
 
 use super::cases::{cases, Connectivity};
+use super::critical::CriticalCounts;
 use super::mask::{Classifier, Inside, PlaneMask};
 use super::slice::SliceSurfels;
 use super::values::{edge_point, SliceValues};
@@ -406,22 +407,76 @@ fn areas_typed<T: Sample>(
 /// Slices per parallel batch: enough work per thread, little memory.
 const BATCH: usize = 16;
 
-/// Runs the genus pass over a volume, streaming its slices.
+/// Where meshers may disagree on a volume: the critical configurations of its inside/outside
+/// pattern, the samples exactly at the isovalue, and the solid under the other connectivity.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Agreement {
+    /// Unit faces with one diagonal inside, unit cubes with two opposite corners alone (see
+    /// [`super::critical`]): none, and every mesher sees one topology.
+    pub critical: CriticalCounts,
+    /// Samples exactly at the isovalue: isotopo (and scikit-image) count them outside, VTK inside.
+    pub samples_at_iso: u64,
+    /// The other connectivity (26 when the surface's is 6).
+    pub other_connectivity: u32,
+    /// Components, handles and cavities under the other connectivity.
+    pub b0: u64,
+    /// Total genus under the other connectivity.
+    pub b1: u64,
+    /// Cavities under the other connectivity.
+    pub b2: u64,
+}
+
+/// The per-slice work of the genus pass beyond the surface: the other connectivity's surfels,
+/// critical cells, samples at the isovalue.
+struct SliceSurvey {
+    other: SliceSurfels,
+    critical: CriticalCounts,
+    at_iso: u64,
+}
+
+fn survey_slice(
+    lo: &PlaneMask,
+    up: &PlaneMask,
+    z: i32,
+    values: Option<&Samples>,
+    classifier: &Classifier,
+    conn: Connectivity,
+) -> SliceSurvey {
+    let at_iso = values.map_or(0, |v| {
+        (0..v.len())
+            .filter(|&i| classifier.scaling.apply(v.get_f64(i)) == classifier.iso)
+            .count() as u64
+    });
+    SliceSurvey {
+        other: SliceSurfels::build(lo, up, z, conn.other()),
+        critical: super::critical::count_critical(lo, up),
+        at_iso,
+    }
+}
+
+/// Runs the genus pass over a volume, streaming its slices; also surveys where meshers may
+/// disagree ([`Agreement`]).
 pub fn genus(
     reader: &mut dyn SliceReader,
     opts: &SurfaceOptions,
     progress: &dyn Progress,
-) -> Result<GenusReport> {
+) -> Result<(GenusReport, Agreement)> {
     let info = reader.info().clone();
     let [nx, ny, nz] = info.dims;
     let classifier = opts.classifier(&info);
     let conn = opts.connectivity;
     let mut tracker = SurfaceTracker::default();
+    let mut other = SurfaceTracker::default();
+    let mut agreement = Agreement {
+        other_connectivity: conn.other().number(),
+        ..Agreement::default()
+    };
     progress.start("genus", nz as u64 + 1);
     // Planes -1 ..= nz with their samples; a batch covers slices z0 .. z0 + BATCH (lower planes).
     let mut lower_plane = PlaneMask::empty(nx, ny);
     let mut lower_values: Option<Samples> = None;
     let mut prev: Option<(SliceSurfels, u32)> = None;
+    let mut prev_other: Option<(SliceSurfels, u32)> = None;
     let mut z0: i32 = -1;
     while z0 < nz as i32 {
         let z1 = (z0 + BATCH as i32).min(nz as i32); // slices z0 .. z1 (exclusive)
@@ -446,7 +501,7 @@ pub fn genus(
                     plane.fill(v, &classifier);
                 }
             });
-        let built: Vec<(SliceSurfels, Vec<f64>)> = (0..(z1 - z0) as usize)
+        let built: Vec<(SliceSurfels, Vec<f64>, SliceSurvey)> = (0..(z1 - z0) as usize)
             .into_par_iter()
             .map(|k| {
                 let (lo, lo_v) = if k == 0 {
@@ -454,7 +509,8 @@ pub fn genus(
                 } else {
                     (&planes[k - 1], values[k - 1].as_ref())
                 };
-                let s = SliceSurfels::build(lo, &planes[k], z0 + k as i32, conn);
+                let z = z0 + k as i32;
+                let s = SliceSurfels::build(lo, &planes[k], z, conn);
                 let sv = SliceValues {
                     lower: lo_v,
                     upper: values[k].as_ref(),
@@ -463,12 +519,23 @@ pub fn genus(
                     scaling: info.scaling,
                 };
                 let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
-                (s, areas)
+                let survey = survey_slice(lo, &planes[k], z, values[k].as_ref(), &classifier, conn);
+                (s, areas, survey)
             })
             .collect();
-        for (s, areas) in built {
+        for (s, areas, survey) in built {
             let base = tracker.add_slice(&s, &areas, prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
             prev = Some((s, base));
+            let o = survey.other;
+            let base = other.add_slice(
+                &o,
+                &[],
+                prev_other.as_ref().map(|(p, b)| (p, *b)),
+                conn.other(),
+            )?;
+            prev_other = Some((o, base));
+            agreement.critical.add(survey.critical);
+            agreement.samples_at_iso += survey.at_iso;
             progress.advance(1);
             progress.check()?;
         }
@@ -477,5 +544,7 @@ pub fn genus(
         z0 = z1;
     }
     progress.finish();
-    tracker.report(info.dims, &info.affine)
+    let o = other.report(info.dims, &info.affine)?;
+    (agreement.b0, agreement.b1, agreement.b2) = (o.b0, o.b1, o.b2);
+    Ok((tracker.report(info.dims, &info.affine)?, agreement))
 }

@@ -1,6 +1,8 @@
-//! Isosurface topology: the cube cases, surfels per slice, and the streaming genus pass.
+//! Isosurface topology: the cube cases, surfels per slice, the streaming genus pass, and the
+//! critical configurations where meshers disagree.
 
 pub mod cases;
+pub mod critical;
 pub mod genus;
 pub mod mask;
 pub mod slice;

@@ -89,7 +89,9 @@ pub fn opts(iso: f64, conn: Connectivity) -> SurfaceOptions {
 
 pub fn run_genus(vol: &InMemoryVolume, iso: f64, conn: Connectivity) -> GenusReport {
     let mut v = vol.clone();
-    genus(&mut v, &opts(iso, conn), &isotopo::progress::NoProgress).expect("genus pass")
+    genus(&mut v, &opts(iso, conn), &isotopo::progress::NoProgress)
+        .expect("genus pass")
+        .0
 }
 
 /// Inside mask of a volume (value > iso).

@@ -1,0 +1,530 @@
+//! Well-composed output: the same isosurface topology under every mesher.
+//!
+//! Where a unit face shows one diagonal, or a unit cube two opposite corners alone
+//! ([`crate::topology::critical`]), connectivity 6 and 26, VTK and scikit-image each pass the
+//! surface their own way. This step removes those patterns by flipping *simple* samples only
+//! (a flip that changes no component, handle or cavity of the chosen connectivity;
+//! `grid::simple`), so the topology the user chose is kept and every mesher sees it.
+//!
+//! ```text
+//!   # .        # #        a diagonal face: flip one of its corners, the one whose flip is
+//!   . #   ->   . #        simple and leaves the fewest critical cells around it
+//! ```
+//!
+//! A critical cell is mended only by flipping one of its corners. The step takes, among the
+//! corners whose flip is simple, the one that lowers the number of critical cells around it the
+//! most; when none lowers it, a pair of flips within one sample of the cell (a corner and a
+//! neighbour, in either order: a lone sample steps aside, then the corner goes). Every change
+//! lowers the number of critical cells of the volume, so the step ends; cells no such change
+//! mends are left and counted (a checkerboard of many separate specks, for one, has no
+//! well-composed form with as many components on the same grid).
+
+use crate::error::Result;
+use crate::grid::simple::topological_numbers;
+use crate::grid::MaskVolume;
+use crate::progress::Progress;
+use crate::surface::search::FastMap;
+use crate::topology::cases::Connectivity;
+use crate::topology::critical::{
+    count_critical, critical, each_critical, CellKind, CriticalCounts,
+};
+
+/// A unit face or cube, by its kind and lowest corner (volume-local, -1 ..= n - 1).
+type Cell = (CellKind, [i64; 3]);
+
+/// What [`compose`] did.
+#[derive(Clone, Debug, Default)]
+pub struct Composition {
+    /// Critical faces and cubes before.
+    pub before: CriticalCounts,
+    /// Critical faces and cubes left (none: the result is well-composed).
+    pub left: CriticalCounts,
+    /// The samples flipped, in volume-local coordinates, with the side each ends on (a sample
+    /// flipped and flipped back is not listed).
+    pub flips: Vec<([i64; 3], bool)>,
+    /// Changes that took two flips (a sample stepping aside first).
+    pub pairs: u64,
+    /// Specks moved aside whole (see [`MAX_SPECK`]).
+    pub moves: u64,
+}
+
+impl Composition {
+    /// Whether no critical configuration is left.
+    pub fn well_composed(&self) -> bool {
+        self.left.total() == 0
+    }
+}
+
+/// Critical faces and cubes of the whole volume (plane by plane, out of core).
+pub fn count_volume(vol: &MaskVolume) -> CriticalCounts {
+    let mut counts = CriticalCounts::default();
+    for w in -1..vol.dims[2] as i64 {
+        counts.add(count_critical(&vol.plane_once(w), &vol.plane_once(w + 1)));
+    }
+    counts
+}
+
+/// Makes the volume well-composed by flipping simple samples (see the module notes).
+/// With `only` set, samples are flipped to that side only (inside: material is only added).
+pub fn compose(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    only: Option<bool>,
+    progress: &dyn Progress,
+) -> Result<Composition> {
+    let before = count_volume(vol);
+    let mut mender = Mender {
+        conn,
+        only,
+        original: FastMap::default(),
+        pairs: 0,
+        moves: 0,
+    };
+    let nw = vol.dims[2] as i64;
+    progress.start("well-composed", nw as u64 + 1);
+    for w in -1..nw {
+        // Out of core: keep the window of planes up to a few above this slab (a speck moves
+        // at most three samples); planes further below are read back when a mend reaches them.
+        vol.follow_sweep(w + 4)?;
+        let mut cells: Vec<Cell> = Vec::new();
+        each_critical(&vol.plane_once(w), &vol.plane_once(w + 1), |i, j, kind| {
+            cells.push((kind, [i as i64 - 1, j as i64 - 1, w]))
+        });
+        for cell in cells {
+            mender.mend(vol, cell);
+        }
+        progress.advance(1);
+        progress.check()?;
+    }
+    progress.finish();
+    vol.follow_sweep(nw)?;
+    let mut flips: Vec<([i64; 3], bool)> = mender
+        .original
+        .into_iter()
+        .filter(|&(q, was)| vol.get(q[0], q[1], q[2]) != was)
+        .map(|(q, was)| (q, !was))
+        .collect();
+    flips.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
+    Ok(Composition {
+        before,
+        left: count_volume(vol),
+        flips,
+        pairs: mender.pairs,
+        moves: mender.moves,
+    })
+}
+
+struct Mender {
+    conn: Connectivity,
+    /// The only side samples may be flipped to, if any.
+    only: Option<bool>,
+    /// Each flipped sample's first side.
+    original: FastMap<[i64; 3], bool>,
+    pairs: u64,
+    moves: u64,
+}
+
+impl Mender {
+    /// Mends `start` and every cell its changes make critical, while a change lowers the count.
+    fn mend(&mut self, vol: &mut MaskVolume, start: Cell) {
+        let mut todo = vec![start];
+        while let Some(cell) = todo.pop() {
+            if !is_critical(vol, cell) {
+                continue;
+            }
+            let flipped = if let Some(p) = self.best_single(vol, cell) {
+                vec![p]
+            } else if let Some((p, q)) = self.best_pair(vol, cell) {
+                self.pairs += 1;
+                vec![p, q]
+            } else if let Some(moves) = self.relocate(vol, cell) {
+                self.moves += 1;
+                moves
+            } else if let Some(three) = self.best_triple(vol, cell) {
+                self.pairs += 1;
+                three
+            } else {
+                continue;
+            };
+            for p in flipped {
+                self.flip(vol, p);
+                todo.extend(cells_at(p).into_iter().filter(|&c| is_critical(vol, c)));
+            }
+        }
+    }
+
+    fn flip(&mut self, vol: &mut MaskVolume, p: [i64; 3]) {
+        let now = vol.get(p[0], p[1], p[2]);
+        self.original.entry(p).or_insert(now);
+        set(vol, p, !now);
+    }
+
+    /// Whether `p` may flip: towards the allowed side, and simple.
+    fn simple(&self, vol: &MaskVolume, p: [i64; 3]) -> bool {
+        self.only
+            .is_none_or(|side| vol.get(p[0], p[1], p[2]) != side)
+            && topological_numbers(vol, p, self.conn) == (1, 1)
+    }
+
+    /// The corner of `cell` whose flip is simple and lowers the critical cells around it the
+    /// most (ties: the first corner).
+    fn best_single(&self, vol: &mut MaskVolume, cell: Cell) -> Option<[i64; 3]> {
+        let mut best: Option<([i64; 3], i64)> = None;
+        for p in corners(vol, cell) {
+            if !self.simple(vol, p) {
+                continue;
+            }
+            let cells = cells_at(p);
+            let d = change(vol, &cells, &[p]);
+            if d < 0 && best.is_none_or(|(_, b)| d < b) {
+                best = Some((p, d));
+            }
+        }
+        best.map(|(p, _)| p)
+    }
+
+    /// Two flips, each simple in turn, one of them a corner of `cell` and the other within one
+    /// sample of it, that lower the critical cells around them the most.
+    fn best_pair(&self, vol: &mut MaskVolume, cell: Cell) -> Option<([i64; 3], [i64; 3])> {
+        let corners = corners(vol, cell);
+        let near = near(vol, cell);
+        type Pair = ([i64; 3], [i64; 3]);
+        let mut best: Option<(Pair, i64)> = None;
+        let orders = corners
+            .iter()
+            .flat_map(|&c| near.iter().flat_map(move |&n| [(c, n), (n, c)]));
+        for (p, q) in orders {
+            if p == q || !self.simple(vol, p) {
+                continue;
+            }
+            let before = vol.get(p[0], p[1], p[2]);
+            set(vol, p, !before);
+            let q_simple = self.simple(vol, q);
+            set(vol, p, before);
+            if !q_simple {
+                continue;
+            }
+            let mut cells = cells_at(p).to_vec();
+            cells.extend(cells_at(q));
+            cells.sort_unstable();
+            cells.dedup();
+            let d = change(vol, &cells, &[p, q]);
+            if d < 0 && best.is_none_or(|(_, b)| d < b) {
+                best = Some(((p, q), d));
+            }
+        }
+        best.map(|(pq, _)| pq)
+    }
+}
+
+/// Largest piece of the 6-connected side moved aside whole: specks that touch another piece
+/// only at an edge or a corner (a diagonal chain of single samples) cannot be mended by one or
+/// two flips without joining or deleting them.
+pub const MAX_SPECK: usize = 4;
+
+/// Farthest a speck is moved, in unit steps along the axes.
+const MAX_STEPS: usize = 3;
+
+const STEPS: [[i64; 3]; 6] = [
+    [1, 0, 0],
+    [-1, 0, 0],
+    [0, 1, 0],
+    [0, -1, 0],
+    [0, 0, 1],
+    [0, 0, -1],
+];
+
+impl Mender {
+    /// The side whose pieces are 6-connected: inside under connectivity 6, outside under 26.
+    fn six_side(&self) -> bool {
+        self.conn == Connectivity::Six
+    }
+
+    /// Moves a speck at a corner of `cell` (a piece of the 6-connected side of at most
+    /// [`MAX_SPECK`] samples) by up to [`MAX_STEPS`] unit steps, each step a sequence of simple
+    /// flips (grow one sample ahead, then let go behind), when that lowers the critical cells
+    /// around it; returns the samples to flip, in order.
+    fn relocate(&mut self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        if self.only.is_some() {
+            return None; // a move both adds and removes
+        }
+        let side = self.six_side();
+        for p in corners(vol, cell) {
+            if vol.get(p[0], p[1], p[2]) != side {
+                continue;
+            }
+            let Some(speck) = small_piece(vol, p, side, MAX_SPECK) else {
+                continue;
+            };
+            for path in paths() {
+                if let Some(flips) = self.try_move(vol, &speck, path, side) {
+                    return Some(flips);
+                }
+            }
+        }
+        None
+    }
+
+    /// The flips moving `speck` along `path`, if each is simple in turn and the move lowers the
+    /// critical cells around them (the volume is left as it was).
+    fn try_move(
+        &self,
+        vol: &mut MaskVolume,
+        speck: &[[i64; 3]],
+        path: &[[i64; 3]],
+        side: bool,
+    ) -> Option<Vec<[i64; 3]>> {
+        let mut at: Vec<[i64; 3]> = speck.to_vec();
+        let mut flips: Vec<[i64; 3]> = Vec::new();
+        let mut ok = true;
+        'steps: for e in path {
+            let next: Vec<[i64; 3]> = at
+                .iter()
+                .map(|q| [q[0] + e[0], q[1] + e[1], q[2] + e[2]])
+                .collect();
+            let grow = next.iter().filter(|q| !at.contains(q));
+            let shrink = at.iter().filter(|q| !next.contains(q));
+            for &q in grow.chain(shrink) {
+                let growing = !at.contains(&q);
+                if !within(vol, q)
+                    || (vol.get(q[0], q[1], q[2]) == side) == growing
+                    || !self.simple(vol, q)
+                {
+                    ok = false;
+                    break 'steps;
+                }
+                set(vol, q, !vol.get(q[0], q[1], q[2]));
+                flips.push(q);
+            }
+            at = next;
+        }
+        let mut cells: Vec<Cell> = flips.iter().flat_map(|&q| cells_at(q)).collect();
+        cells.sort_unstable();
+        cells.dedup();
+        let count = |vol: &MaskVolume| cells.iter().filter(|&&c| is_critical(vol, c)).count();
+        let after = count(vol);
+        for &q in flips.iter().rev() {
+            set(vol, q, !vol.get(q[0], q[1], q[2]));
+        }
+        let before = count(vol);
+        (ok && after < before).then_some(flips)
+    }
+}
+
+/// The piece of `side` (6-adjacent samples) through `p`, if it has at most `max` samples and
+/// stays inside the volume.
+fn small_piece(vol: &MaskVolume, p: [i64; 3], side: bool, max: usize) -> Option<Vec<[i64; 3]>> {
+    let mut piece = vec![p];
+    let mut k = 0;
+    while k < piece.len() {
+        let q = piece[k];
+        k += 1;
+        for e in STEPS {
+            let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
+            let same = if within(vol, r) {
+                vol.get(r[0], r[1], r[2]) == side
+            } else {
+                !side // the padding is outside
+            };
+            if same && !piece.contains(&r) {
+                if !within(vol, r) || piece.len() == max {
+                    return None;
+                }
+                piece.push(r);
+            }
+        }
+    }
+    Some(piece)
+}
+
+/// Paths of one to [`MAX_STEPS`] unit steps, shortest first, never stepping straight back.
+fn paths() -> &'static [Vec<[i64; 3]>] {
+    static PATHS: std::sync::OnceLock<Vec<Vec<[i64; 3]>>> = std::sync::OnceLock::new();
+    PATHS.get_or_init(|| {
+        let mut all: Vec<Vec<[i64; 3]>> = vec![vec![]];
+        let mut out = Vec::new();
+        for _ in 0..MAX_STEPS {
+            let mut longer = Vec::new();
+            for p in &all {
+                for e in STEPS {
+                    if p.last()
+                        .is_some_and(|l| l.iter().zip(e).all(|(a, b)| a + b == 0))
+                    {
+                        continue;
+                    }
+                    let mut q = p.clone();
+                    q.push(e);
+                    longer.push(q);
+                }
+            }
+            out.extend(longer.iter().cloned());
+            all = longer;
+        }
+        out
+    })
+}
+
+impl Mender {
+    /// Three flips, each simple in turn: two samples within one sample of `cell`, the second
+    /// next to the first, then a corner of `cell`; the first such that lowers the critical cells
+    /// around them. A thread that steps diagonally past another part of its own piece is
+    /// mended so: a detour grows beside the corner, then the corner goes.
+    ///
+    /// ```text
+    ///   # . .      # # .      # # .
+    ///   # . .  ->  # # .  ->  . # .     (the corner left of the diagonal moves aside)
+    ///   . # #      . # #      . # #
+    /// ```
+    fn best_triple(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        let corners = corners(vol, cell);
+        let near = near(vol, cell);
+        for &p in &near {
+            if !self.simple(vol, p) {
+                continue;
+            }
+            toggle(vol, p);
+            let found = self.triple_after(vol, p, &near, &corners);
+            toggle(vol, p);
+            if found.is_some() {
+                return found;
+            }
+        }
+        None
+    }
+
+    /// With `p` flipped: the rest of a triple (see [`Mender::best_triple`]).
+    fn triple_after(
+        &self,
+        vol: &mut MaskVolume,
+        p: [i64; 3],
+        near: &[[i64; 3]],
+        corners: &[[i64; 3]],
+    ) -> Option<Vec<[i64; 3]>> {
+        let next_to = |a: [i64; 3], b: [i64; 3]| a != b && (0..3).all(|c| (a[c] - b[c]).abs() <= 1);
+        for &q in near.iter().filter(|&&q| next_to(p, q)) {
+            if !self.simple(vol, q) {
+                continue;
+            }
+            toggle(vol, q);
+            for &r in corners.iter().filter(|&&r| r != p && r != q) {
+                if !self.simple(vol, r) {
+                    continue;
+                }
+                let mut cells: Vec<Cell> = [p, q, r].iter().flat_map(|&x| cells_at(x)).collect();
+                cells.sort_unstable();
+                cells.dedup();
+                toggle(vol, q);
+                toggle(vol, p);
+                // From the state before the three: p, q, r in turn.
+                let d = change(vol, &cells, &[p, q, r]);
+                toggle(vol, p);
+                toggle(vol, q);
+                if d < 0 {
+                    toggle(vol, q);
+                    return Some(vec![p, q, r]);
+                }
+            }
+            toggle(vol, q);
+        }
+        None
+    }
+}
+
+fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {
+    set(vol, p, !vol.get(p[0], p[1], p[2]));
+}
+
+fn set(vol: &mut MaskVolume, p: [i64; 3], inside: bool) {
+    vol.set(p[0] as usize, p[1] as usize, p[2] as usize, inside)
+}
+
+fn within(vol: &MaskVolume, p: [i64; 3]) -> bool {
+    (0..3).all(|c| p[c] >= 0 && p[c] < vol.dims[c] as i64)
+}
+
+/// The change in critical cells among `cells` if the samples `flips` are flipped in turn (the
+/// volume is left as it was).
+fn change(vol: &mut MaskVolume, cells: &[Cell], flips: &[[i64; 3]]) -> i64 {
+    let count = |vol: &MaskVolume| cells.iter().filter(|&&c| is_critical(vol, c)).count() as i64;
+    let before = count(vol);
+    for &p in flips {
+        set(vol, p, !vol.get(p[0], p[1], p[2]));
+    }
+    let after = count(vol);
+    for &p in flips.iter().rev() {
+        set(vol, p, !vol.get(p[0], p[1], p[2]));
+    }
+    after - before
+}
+
+/// The corner bits of the cube with lowest corner `c`.
+fn cube_bits(vol: &MaskVolume, c: [i64; 3]) -> u8 {
+    let mut bits = 0u8;
+    for k in 0..8u8 {
+        let d = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from);
+        if vol.get(c[0] + d[0], c[1] + d[1], c[2] + d[2]) {
+            bits |= 1 << k;
+        }
+    }
+    bits
+}
+
+fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
+    critical(kind, cube_bits(vol, c))
+}
+
+/// The in-volume corners of a cell.
+fn corners(vol: &MaskVolume, (kind, c): Cell) -> Vec<[i64; 3]> {
+    let fixed = match kind {
+        CellKind::FaceX => Some(0),
+        CellKind::FaceY => Some(1),
+        CellKind::FaceZ => Some(2),
+        CellKind::Cube => None,
+    };
+    (0..8u8)
+        .map(|k| [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from))
+        .filter(|d| fixed.is_none_or(|a| d[a] == 0))
+        .map(|d| [c[0] + d[0], c[1] + d[1], c[2] + d[2]])
+        .filter(|&p| within(vol, p))
+        .collect()
+}
+
+/// The in-volume samples within one sample of a cell's cube (4 × 4 × 4).
+fn near(vol: &MaskVolume, (_, c): Cell) -> Vec<[i64; 3]> {
+    let mut out = Vec::with_capacity(64);
+    for z in -1..=2 {
+        for y in -1..=2 {
+            for x in -1..=2 {
+                let p = [c[0] + x, c[1] + y, c[2] + z];
+                if within(vol, p) {
+                    out.push(p);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The twenty cells that have sample `p` as a corner: eight cubes and twelve faces.
+fn cells_at(p: [i64; 3]) -> [Cell; 20] {
+    let mut out = [(CellKind::Cube, p); 20];
+    let mut n = 0;
+    for k in 0..8u8 {
+        let d = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from);
+        let c = [p[0] - d[0], p[1] - d[1], p[2] - d[2]];
+        out[n] = (CellKind::Cube, c);
+        n += 1;
+        // A face through p normal to axis a: its corner lies in p's plane along a.
+        for (a, kind) in [CellKind::FaceX, CellKind::FaceY, CellKind::FaceZ]
+            .into_iter()
+            .enumerate()
+        {
+            if d[a] == 0 {
+                out[n] = (kind, c);
+                n += 1;
+            }
+        }
+    }
+    debug_assert_eq!(n, 20);
+    out
+}

@@ -1,0 +1,316 @@
+//! Well-composed output (`SimplifyOptions::well_composed`, `simplify --tau 0`): on volumes full
+//! of critical configurations, checked with this file's own count of critical faces and cubes
+//! and the cell-counting oracle under both connectivities.
+
+mod common;
+
+use common::oracle::betti;
+use common::{Rng, BOTH};
+use isotopo::progress::NoProgress;
+use isotopo::topology::{Connectivity, SurfaceOptions};
+use isotopo::volume::InMemoryVolume;
+use isotopo::{SimplifyOptions, Source};
+
+/// Critical faces and cubes of a mask (x fastest), padded with outside: counted sample by
+/// sample, sharing nothing with the library's word-wise count.
+fn critical(mask: &[bool], dims: [usize; 3]) -> (usize, usize) {
+    let [nx, ny, nz] = dims.map(|n| n as i64);
+    let at = |x: i64, y: i64, z: i64| -> bool {
+        x >= 0
+            && y >= 0
+            && z >= 0
+            && x < nx
+            && y < ny
+            && z < nz
+            && mask[((z * ny + y) * nx + x) as usize]
+    };
+    let (mut faces, mut cubes) = (0, 0);
+    for z in -1..nz {
+        for y in -1..ny {
+            for x in -1..nx {
+                let c = |dx: i64, dy: i64, dz: i64| at(x + dx, y + dy, z + dz);
+                // The three faces through (x, y, z) and the cube above it.
+                let squares = [
+                    [c(0, 0, 0), c(0, 1, 1), c(0, 1, 0), c(0, 0, 1)],
+                    [c(0, 0, 0), c(1, 0, 1), c(1, 0, 0), c(0, 0, 1)],
+                    [c(0, 0, 0), c(1, 1, 0), c(1, 0, 0), c(0, 1, 0)],
+                ];
+                for [a, d, b, e] in squares {
+                    if a == d && b == e && a != b {
+                        faces += 1;
+                    }
+                }
+                let corners: Vec<bool> = (0..8).map(|k| c(k & 1, (k >> 1) & 1, k >> 2)).collect();
+                let ones = corners.iter().filter(|&&v| v).count();
+                for k in 0..4 {
+                    let pair = [corners[k], corners[7 - k]];
+                    if (ones == 2 && pair == [true, true]) || (ones == 6 && pair == [false, false])
+                    {
+                        cubes += 1;
+                    }
+                }
+            }
+        }
+    }
+    (faces, cubes)
+}
+
+struct Case {
+    name: String,
+    vol: InMemoryVolume,
+    iso: f64,
+}
+
+fn case(name: &str, vol: InMemoryVolume, iso: f64) -> Case {
+    Case {
+        name: name.into(),
+        vol,
+        iso,
+    }
+}
+
+/// Runs the step alone (tau 0) and checks it: returns the critical cells left.
+fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
+    let opts = SimplifyOptions {
+        surface: SurfaceOptions {
+            iso: c.iso,
+            connectivity: conn,
+            ..SurfaceOptions::default()
+        },
+        tau: 0.0,
+        ..SimplifyOptions::default()
+    };
+    let what = format!("{}, connectivity {}", c.name, conn.number());
+    let dims = c.vol.dims();
+    let before = common::mask_of(&c.vol, c.iso);
+    let mut done = isotopo::simplify(Source::from(c.vol.clone()), &opts, &NoProgress)
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    let edited = done.edited().unwrap();
+    let after = common::mask_of(&edited, c.iso);
+    let chosen = betti(&before, dims, conn);
+    let b = |m: &[bool], k: Connectivity| {
+        let t = betti(m, dims, k);
+        (t.0, t.1, t.2)
+    };
+    assert_eq!(
+        b(&after, conn),
+        (chosen.0, chosen.1, chosen.2),
+        "{what}: topology changed"
+    );
+    let left = critical(&after, dims);
+    let composition = done.outcome.composition.as_ref().expect("on by default");
+    assert_eq!(
+        (left.0 as u64, left.1 as u64),
+        (composition.left.faces, composition.left.cubes),
+        "{what}: critical cells left"
+    );
+    let first = critical(&before, dims);
+    assert_eq!(
+        (first.0 as u64, first.1 as u64),
+        (composition.before.faces, composition.before.cubes),
+        "{what}: critical cells before"
+    );
+    if left == (0, 0) {
+        assert_eq!(
+            b(&after, conn.other()),
+            b(&after, conn),
+            "{what}: well-composed, yet the connectivities differ"
+        );
+    }
+    let other = b(&after, conn.other());
+    let a = &done.after_other;
+    assert_eq!(
+        other,
+        (a.b0 as i64, a.b1 as i64, a.b2 as i64),
+        "{what}: the other connectivity"
+    );
+    // Floating-point samples at the isovalue moved just outside (the wall value).
+    let at_iso = (0..dims[2])
+        .flat_map(|z| (0..dims[1]).flat_map(move |y| (0..dims[0]).map(move |x| (x, y, z))))
+        .filter(|&(x, y, z)| edited.get(x, y, z) == c.iso)
+        .count();
+    assert_eq!(at_iso, 0, "{what}: samples left at the isovalue");
+    let ties = (0..dims[2])
+        .flat_map(|z| (0..dims[1]).flat_map(move |y| (0..dims[0]).map(move |x| (x, y, z))))
+        // A tie is outside; those the step set inside are edits, not moves.
+        .filter(|&(x, y, z)| c.vol.get(x, y, z) == c.iso && edited.get(x, y, z) <= c.iso)
+        .count();
+    let written = done.written.expect("edited() records what it wrote");
+    assert_eq!(
+        written.samples_at_iso, ties as u64,
+        "{what}: samples at the isovalue"
+    );
+    eprintln!(
+        "{what}: critical {first:?} -> {left:?}, {} flipped",
+        composition.flips.len()
+    );
+    left
+}
+
+/// A volume of -1 with the samples where `inside` holds set to +1.
+fn shape(dims: [usize; 3], inside: impl Fn(usize, usize, usize) -> bool) -> InMemoryVolume {
+    InMemoryVolume::from_fn(dims, |x, y, z| if inside(x, y, z) { 1.0 } else { -1.0 })
+}
+
+/// Patterns made of critical configurations, each with room around it.
+fn patterns() -> Vec<Case> {
+    let d = [14, 14, 14];
+    vec![
+        // Single samples in a line, each touching the next along an edge / at a corner.
+        case(
+            "edge chain",
+            shape(d, |x, y, z| z == 6 && x == y && (3..10).contains(&x)),
+            0.0,
+        ),
+        case(
+            "corner chain",
+            shape(d, |x, y, z| x == y && y == z && (3..10).contains(&x)),
+            0.0,
+        ),
+        // Two 2x2x2 blocks touching at a corner, two touching along an edge.
+        case(
+            "corner-touching cubes",
+            shape(d, |x, y, z| {
+                let block = |o: [usize; 3]| {
+                    (o[0]..o[0] + 2).contains(&x)
+                        && (o[1]..o[1] + 2).contains(&y)
+                        && (o[2]..o[2] + 2).contains(&z)
+                };
+                block([4, 4, 4]) || block([6, 6, 6])
+            }),
+            0.0,
+        ),
+        case(
+            "edge-touching cubes",
+            shape(d, |x, y, z| {
+                let block = |o: [usize; 3]| {
+                    (o[0]..o[0] + 3).contains(&x)
+                        && (o[1]..o[1] + 3).contains(&y)
+                        && (o[2]..o[2] + 3).contains(&z)
+                };
+                block([3, 3, 4]) || block([6, 6, 4])
+            }),
+            0.0,
+        ),
+        // Checkerboard patches: a 2x2x2 one (four samples, each touching the others along
+        // edges), a flat 3x3 one.
+        case(
+            "checkerboard 2x2x2",
+            shape(d, |x, y, z| {
+                (6..8).contains(&x)
+                    && (6..8).contains(&y)
+                    && (6..8).contains(&z)
+                    && (x + y + z) % 2 == 0
+            }),
+            0.0,
+        ),
+        case(
+            "checkerboard 3x3",
+            shape(d, |x, y, z| {
+                z == 6 && (5..8).contains(&x) && (5..8).contains(&y) && (x + y) % 2 == 0
+            }),
+            0.0,
+        ),
+        // A ring of samples each touching the next along an edge, round a hole.
+        case(
+            "diagonal ring",
+            shape(d, |x, y, z| {
+                z == 6 && (x as i64 - 7).abs() + (y as i64 - 7).abs() == 3
+            }),
+            0.0,
+        ),
+    ]
+}
+
+#[test]
+fn patterns_become_well_composed() {
+    for c in patterns() {
+        for conn in BOTH {
+            let left = compose_and_check(&c, conn);
+            assert_eq!(
+                left,
+                (0, 0),
+                "{}, connectivity {}: critical cells left",
+                c.name,
+                conn.number()
+            );
+        }
+    }
+}
+
+/// Random noise at several densities and smoothed noise at several isovalues, some samples
+/// exactly at the isovalue: the topology of the chosen connectivity kept, no sample left at the
+/// isovalue, the cells left counted exactly (see `compose_and_check`), and few left. Dense raw
+/// noise cannot always be mended on the same grid (a checkerboard of single samples has more
+/// separate pieces than a well-composed set of its size can hold); smoothed noise, like scans,
+/// nearly always can.
+#[test]
+fn noise_keeps_its_topology_and_is_nearly_mended() {
+    let mut rng = Rng(5);
+    let (mut raw, mut smooth) = ((0, 0), (0, 0));
+    for density in [0.05, 0.15, 0.3, 0.5] {
+        let dims = [16, 15, 14];
+        let v: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|_| rng.f64() as f32)
+            .collect();
+        let iso = (1.0 - density) as f32 as f64;
+        let c = case(
+            &format!("noise {density}"),
+            with_ties(common::volume_from(dims, &v), iso, &mut rng),
+            iso,
+        );
+        for conn in BOTH {
+            let left = compose_and_check(&c, conn);
+            raw.0 += left.0 + left.1;
+            let first = critical(&common::mask_of(&c.vol, iso), dims);
+            raw.1 += first.0 + first.1;
+        }
+    }
+    for q in [0.2, 0.35, 0.5, 0.65, 0.8] {
+        let dims = [20, 18, 16];
+        let v = common::smoothed_noise(dims, 1, &mut rng);
+        let iso = common::quantile(&v, q);
+        let c = case(
+            &format!("smoothed noise q {q}"),
+            with_ties(common::volume_from(dims, &v), iso, &mut rng),
+            iso,
+        );
+        for conn in BOTH {
+            let left = compose_and_check(&c, conn);
+            smooth.0 += left.0 + left.1;
+            let first = critical(&common::mask_of(&c.vol, iso), dims);
+            smooth.1 += first.0 + first.1;
+        }
+    }
+    eprintln!(
+        "left: raw noise {} of {}, smoothed {} of {}",
+        raw.0, raw.1, smooth.0, smooth.1
+    );
+    assert!(
+        raw.0 * 100 <= raw.1 * 6,
+        "raw noise: {} of {} critical cells left",
+        raw.0,
+        raw.1
+    );
+    assert!(
+        smooth.0 * 100 <= smooth.1 * 2,
+        "smoothed noise: {} of {} left",
+        smooth.0,
+        smooth.1
+    );
+}
+
+/// The volume with one sample in twenty set exactly to the isovalue.
+fn with_ties(mut vol: InMemoryVolume, iso: f64, rng: &mut Rng) -> InMemoryVolume {
+    let [nx, ny, nz] = vol.dims();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                if rng.below(20) == 0 {
+                    vol.set(x, y, z, iso);
+                }
+            }
+        }
+    }
+    vol
+}
