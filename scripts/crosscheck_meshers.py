@@ -63,9 +63,12 @@ def mesh_genus(verts, faces):
 
 
 def padded(values, iso, inside):
-    """The samples as float64, padded by one sample outside (every surface closed)."""
+    """The samples padded by one sample outside (every surface closed): as float32 when that
+    holds them exactly (integers of up to 16 bits, float32; half the memory and time), else
+    float64."""
+    exact32 = values.dtype == np.float32 or (values.dtype.kind in "iu" and values.dtype.itemsize <= 2)
     outside = iso - 1 if inside == "above" else iso + 1
-    return np.pad(values.astype(np.float64), 1, constant_values=outside)
+    return np.pad(values.astype(np.float32 if exact32 else np.float64), 1, constant_values=outside)
 
 
 def skimage_genus(values, iso, inside):
