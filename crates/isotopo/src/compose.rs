@@ -20,7 +20,7 @@
 //! well-composed form with as many components on the same grid).
 
 use crate::error::Result;
-use crate::grid::simple::topological_numbers;
+use crate::grid::simple::{same_piece, topological_numbers};
 use crate::grid::MaskVolume;
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
@@ -46,6 +46,8 @@ pub struct Composition {
     pub pairs: u64,
     /// Specks moved aside whole (see [`MAX_SPECK`]).
     pub moves: u64,
+    /// Handles moved off a critical face (see `Mender::swap_handle`).
+    pub swaps: u64,
 }
 
 impl Composition {
@@ -79,6 +81,7 @@ pub fn compose(
         original: FastMap::default(),
         pairs: 0,
         moves: 0,
+        swaps: 0,
     };
     let nw = vol.dims[2] as i64;
     progress.start("well-composed", nw as u64 + 1);
@@ -111,6 +114,7 @@ pub fn compose(
         flips,
         pairs: mender.pairs,
         moves: mender.moves,
+        swaps: mender.swaps,
     })
 }
 
@@ -122,6 +126,7 @@ struct Mender {
     original: FastMap<[i64; 3], bool>,
     pairs: u64,
     moves: u64,
+    swaps: u64,
 }
 
 impl Mender {
@@ -143,6 +148,9 @@ impl Mender {
             } else if let Some(three) = self.best_triple(vol, cell) {
                 self.pairs += 1;
                 three
+            } else if let Some(swap) = self.swap_handle(vol, cell) {
+                self.swaps += 1;
+                swap
             } else {
                 continue;
             };
@@ -428,6 +436,120 @@ impl Mender {
         }
         None
     }
+}
+
+/// How far from a critical face the path joining its two corners is looked for.
+const SWAP_REACH: i64 = 6;
+
+impl Mender {
+    /// A face whose two corners of the 6-connected side are joined elsewhere by a path of that
+    /// side (so the other connectivity sees a handle through the face that this one does not):
+    /// flip one of the other two corners to that side, which makes the handle this
+    /// connectivity's too, and cut the path at a sample whose flip cuts that handle and nothing
+    /// else. Components, cavities and the number of handles stay; the handle now goes round
+    /// the face instead of through it.
+    ///
+    /// ```text
+    ///   a .        a b        the path a ~~ d elsewhere; b joins a and d (a handle of the
+    ///   . d   ->   . d        piece), then a sample e of the path is cut: its two pieces are
+    ///                         still joined, through b
+    /// ```
+    fn swap_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        let side = self.six_side();
+        if self.only.is_some() || cell.0 == CellKind::Cube {
+            return None;
+        }
+        let cs = corners(vol, cell);
+        let (joined, others): (Vec<[i64; 3]>, Vec<[i64; 3]>) =
+            cs.iter().partition(|p| vol.get(p[0], p[1], p[2]) == side);
+        if joined.len() != 2 || others.len() != 2 {
+            return None;
+        }
+        let path = side_path(vol, joined[0], joined[1], side, cell.1)?;
+        let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
+        for &b in &others {
+            // b's two pieces must be a's and d's (joined elsewhere by the path): then b makes a
+            // handle, and joins no two components.
+            if self.numbers(vol, b) != (2, 1) || same_piece(vol, b, side, joined[0], joined[1]) {
+                continue;
+            }
+            toggle(vol, b);
+            for i in 0..path.len() {
+                let e = path[i];
+                // Cut only where the path's two sides at e are e's only two pieces.
+                let ends = (i.checked_sub(1).map(|j| path[j]), path.get(i + 1).copied());
+                let cuts = match ends {
+                    (Some(p), Some(n)) => !same_piece(vol, e, side, p, n),
+                    // At a or d: the other side is b.
+                    (None, Some(n)) | (Some(n), None) => !same_piece(vol, e, side, b, n),
+                    (None, None) => false,
+                };
+                if !cuts || self.numbers(vol, e) != (2, 1) {
+                    continue;
+                }
+                let mut cells: Vec<Cell> = cells_at(b).into_iter().chain(cells_at(e)).collect();
+                cells.sort_unstable();
+                cells.dedup();
+                toggle(vol, b);
+                let d = change(vol, &cells, &[b, e]);
+                toggle(vol, b);
+                if d < 0 && best.as_ref().is_none_or(|(_, x)| d < *x) {
+                    best = Some((vec![b, e], d));
+                }
+            }
+            toggle(vol, b);
+        }
+        best.map(|(flips, _)| flips)
+    }
+
+    /// The topological numbers of `p` as (6-connected side, other side).
+    fn numbers(&self, vol: &MaskVolume, p: [i64; 3]) -> (usize, usize) {
+        let (inside, outside) = topological_numbers(vol, p, self.conn);
+        if self.six_side() {
+            (inside, outside)
+        } else {
+            (outside, inside)
+        }
+    }
+}
+
+/// A shortest path of 6-adjacent samples of `side` from `a` to `d` within [`SWAP_REACH`] of
+/// `near`, both ends included.
+fn side_path(
+    vol: &MaskVolume,
+    a: [i64; 3],
+    d: [i64; 3],
+    side: bool,
+    near: [i64; 3],
+) -> Option<Vec<[i64; 3]>> {
+    let mut from: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
+    from.insert(a, a);
+    let mut queue = std::collections::VecDeque::from([a]);
+    while let Some(q) = queue.pop_front() {
+        if q == d {
+            let mut path = vec![d];
+            let mut at = d;
+            while at != a {
+                at = from[&at];
+                path.push(at);
+            }
+            path.reverse();
+            return Some(path);
+        }
+        for e in STEPS {
+            let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
+            let close = (0..3).all(|c| (r[c] - near[c]).abs() <= SWAP_REACH);
+            if close
+                && within(vol, r)
+                && vol.get(r[0], r[1], r[2]) == side
+                && !from.contains_key(&r)
+            {
+                from.insert(r, q);
+                queue.push_back(r);
+            }
+        }
+    }
+    None
 }
 
 fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {

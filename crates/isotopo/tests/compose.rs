@@ -141,8 +141,11 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
         "{what}: samples at the isovalue"
     );
     eprintln!(
-        "{what}: critical {first:?} -> {left:?}, {} flipped",
-        composition.flips.len()
+        "{what}: critical {first:?} -> {left:?}, {} flipped; {} pairs, {} specks moved, {} handles swapped",
+        composition.flips.len(),
+        composition.pairs,
+        composition.moves,
+        composition.swaps
     );
     left
 }

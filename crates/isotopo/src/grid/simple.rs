@@ -125,3 +125,32 @@ pub(crate) fn topological_numbers(
         components(&outside, !six_inside),
     )
 }
+
+/// Whether the face neighbours `a` and `b` of sample `q` lie in one piece of `side` within its
+/// neighbourhood (6-adjacent pieces in the 18-neighbourhood: `side` is the 6-connected side).
+pub(crate) fn same_piece(
+    vol: &MaskVolume,
+    q: [i64; 3],
+    side: bool,
+    a: [i64; 3],
+    b: [i64; 3],
+) -> bool {
+    let nb = neighbourhood();
+    let dims = vol.dims.map(|n| n as i64);
+    let mut member = [false; 26];
+    let (mut ka, mut kb) = (None, None);
+    for (k, d) in nb.offsets.iter().enumerate() {
+        let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+        let within = (0..3).all(|c| r[c] >= 0 && r[c] < dims[c]);
+        member[k] = (within && vol.get(r[0], r[1], r[2])) == side;
+        if r == a {
+            ka = Some(k);
+        }
+        if r == b {
+            kb = Some(k);
+        }
+    }
+    let mut piece = [usize::MAX; 26];
+    label_pieces(&member, true, |p, k| piece[k] = p);
+    matches!((ka, kb), (Some(x), Some(y)) if piece[x] != usize::MAX && piece[x] == piece[y])
+}

@@ -696,6 +696,8 @@ impl<'a> Run<'a> {
         }
         total.left = c.left;
         total.pairs += c.pairs;
+        total.moves += c.moves;
+        total.swaps += c.swaps;
         Ok(flipped)
     }
 
