@@ -5,7 +5,9 @@
 //! (a Reeb graph of contours and ribbons, after Wood, Hoppe, Desbrun and Schröder, *Isosurface
 //! Topology Simplification*, 2002), measures each by its two shortest surface loops, and removes the
 //! small ones by writing a thin wall into the volume, so the result is always a valid manifold
-//! isosurface and the geometry away from each handle is untouched.
+//! isosurface and the geometry away from each handle is untouched. The output is then made
+//! well-composed ([`compose`]): other meshers (VTK, scikit-image, the other connectivity) see
+//! the same topology.
 //!
 //! ## Use
 //!
@@ -51,9 +53,10 @@
 //! - [`topology`]: the cube cases derived from the digital-topology rule, surfels of a slice, and
 //!   the streaming genus pass; [`mesh`]: the isosurface as a mesh.
 //! - [`grid`]: the volume as inside bits in a window of planes, in the sweep's frame, with the
-//!   fractions along crossing edges.
+//!   fractions along crossing edges; simple samples.
 //! - [`surface`]: the isosurface as a graph (vertices on cube edges), where its vertices lie,
 //!   and the searches on it.
+//! - [`compose`]: the critical configurations mended by simple flips (well-composed output).
 //! - [`sweep`]: contours, ribbons and the Reeb graph: every handle located.
 //! - [`loops`]: each handle's Reeb loop and cross loop, the shortest on the whole surface.
 //! - `closure`: walls across loops, written into the volume and verified.

@@ -82,7 +82,8 @@ pub struct SimplifyOptions {
     pub axis: Axis,
     /// Handles whose size (the shorter loop, in `metric` units) is below this are removed; by
     /// default 20 voxel edges (the gap between noise and features on the real volumes);
-    /// infinity removes every handle.
+    /// infinity removes every handle, 0 none (only the well-composed step then changes the
+    /// volume).
     pub tau: f64,
     /// What `tau` is measured in: by default voxel edges (the paper's unit); or millimetres
     /// along the interpolated surface, for anisotropic scans.
@@ -120,7 +121,7 @@ impl Default for SimplifyOptions {
 }
 
 impl SimplifyOptions {
-    /// Refuses options no simplification can follow: tau not positive, a ratio below 1, an
+    /// Refuses options no simplification can follow: tau negative or NaN, a ratio below 1, an
     /// isovalue that is not a number.
     pub fn validate(&self) -> Result<()> {
         if self.tau.is_nan() || self.tau < 0.0 {
