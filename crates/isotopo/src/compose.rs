@@ -13,11 +13,23 @@
 //!
 //! A critical cell is mended only by flipping one of its corners. The step takes, among the
 //! corners whose flip is simple, the one that lowers the number of critical cells around it the
-//! most; when none lowers it, a pair of flips within one sample of the cell (a corner and a
-//! neighbour, in either order: a lone sample steps aside, then the corner goes). Every change
+//! most; when none lowers it, in turn:
+//!
+//! - a pair of simple flips within one sample of the cell (a neighbour steps aside, then the
+//!   corner goes);
+//! - a *speck* at a corner (a piece of the 6-connected side of at most [`MAX_SPECK`] samples: a
+//!   ball) moved up to [`MAX_STEPS`] unit steps, each step simple flips, or put down whole
+//!   elsewhere within that reach where nothing of its side touches it and the same piece of the
+//!   other side surrounds it (its surface, a sphere, stays in the same region);
+//! - a detour of three simple flips (two beside the cell, then the corner);
+//! - a handle moved off a face whose two corners are joined elsewhere (see
+//!   `Mender::swap_handle`): one flip adds the handle through the face, one cuts the path.
+//!
+//! Every change keeps the components, handles and cavities of the chosen connectivity and
 //! lowers the number of critical cells of the volume, so the step ends; cells no such change
-//! mends are left and counted (a checkerboard of many separate specks, for one, has no
-//! well-composed form with as many components on the same grid).
+//! mends are left and counted: specks packed among other pieces with nowhere to go, threads
+//! tangled with themselves. (A checkerboard of single samples has more separate pieces than a
+//! well-composed set of its size can hold: no step can mend all of it.)
 
 use crate::error::Result;
 use crate::grid::simple::{same_piece, topological_numbers};
@@ -231,7 +243,7 @@ impl Mender {
 pub const MAX_SPECK: usize = 4;
 
 /// Farthest a speck is moved, in unit steps along the axes.
-const MAX_STEPS: usize = 3;
+pub const MAX_STEPS: usize = 3;
 
 const STEPS: [[i64; 3]; 6] = [
     [1, 0, 0],
@@ -269,8 +281,74 @@ impl Mender {
                     return Some(flips);
                 }
             }
+            if let Some(to) = self.teleport(vol, &speck, side) {
+                return Some(speck.iter().copied().chain(to).collect());
+            }
         }
         None
+    }
+
+    /// A speck hemmed in (every step aside touches another piece): where it can be put instead,
+    /// moved by up to [`MAX_STEPS`] samples along each axis, with no sample of its side beside
+    /// the new place and the two places in one piece of the other side. A speck of at most
+    /// [`MAX_SPECK`] 6-adjacent samples is a ball, so its surface is a sphere in the same
+    /// region as before: nothing but its place changes. Returns the new place that lowers the
+    /// critical cells around the two the most.
+    fn teleport(
+        &self,
+        vol: &mut MaskVolume,
+        speck: &[[i64; 3]],
+        side: bool,
+    ) -> Option<Vec<[i64; 3]>> {
+        let r = MAX_STEPS as i64;
+        let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
+        for dz in -r..=r {
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let to: Vec<[i64; 3]> = speck
+                        .iter()
+                        .map(|q| [q[0] + dx, q[1] + dy, q[2] + dz])
+                        .collect();
+                    if !self.free_for(vol, speck, &to, side)
+                        || !same_region(vol, speck, to[0], side)
+                    {
+                        continue;
+                    }
+                    let mut cells: Vec<Cell> =
+                        speck.iter().chain(&to).flat_map(|&q| cells_at(q)).collect();
+                    cells.sort_unstable();
+                    cells.dedup();
+                    let flips: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
+                    let d = change(vol, &cells, &flips);
+                    if d < 0 && best.as_ref().is_none_or(|(_, b)| d < *b) {
+                        best = Some((to, d));
+                    }
+                }
+            }
+        }
+        best.map(|(to, _)| to)
+    }
+
+    /// Whether the speck can be put at `to`: inside the volume, apart from where it is (not
+    /// even beside it), of the other side now, and with no sample of `side` beside it.
+    fn free_for(&self, vol: &MaskVolume, speck: &[[i64; 3]], to: &[[i64; 3]], side: bool) -> bool {
+        let apart = to.iter().all(|t| {
+            speck
+                .iter()
+                .all(|q| (0..3).map(|c| (t[c] - q[c]).abs()).sum::<i64>() > 1)
+        });
+        apart
+            && to.iter().all(|&t| {
+                within(vol, t)
+                    && vol.get(t[0], t[1], t[2]) != side
+                    && STEPS.iter().all(|e| {
+                        let q = [t[0] + e[0], t[1] + e[1], t[2] + e[2]];
+                        // (The padding is outside: of the other side when `side` is inside.)
+                        to.contains(&q)
+                            || !within(vol, q) && side
+                            || within(vol, q) && vol.get(q[0], q[1], q[2]) != side
+                    })
+            })
     }
 
     /// The flips moving `speck` along `path`, if each is simple in turn and the move lowers the
@@ -317,6 +395,40 @@ impl Mender {
         let before = count(vol);
         (ok && after < before).then_some(flips)
     }
+}
+
+/// Whether `t` and the speck (samples of `side`, to be let go) lie in one piece of the other
+/// side (26-adjacent samples) within a box round them.
+fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) -> bool {
+    let p = speck[0];
+    let lo: [i64; 3] = std::array::from_fn(|c| p[c].min(t[c]) - MAX_SPECK as i64 - 1);
+    let hi: [i64; 3] = std::array::from_fn(|c| p[c].max(t[c]) + MAX_SPECK as i64 + 1);
+    let other = |q: [i64; 3]| {
+        speck.contains(&q)
+            || !within(vol, q) && side
+            || within(vol, q) && vol.get(q[0], q[1], q[2]) != side
+    };
+    let mut seen: FastMap<[i64; 3], ()> = FastMap::default();
+    seen.insert(t, ());
+    let mut stack = vec![t];
+    while let Some(q) = stack.pop() {
+        if q == p {
+            return true;
+        }
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let n = [q[0] + dx, q[1] + dy, q[2] + dz];
+                    let inside_box = (0..3).all(|c| n[c] >= lo[c] && n[c] <= hi[c]);
+                    if inside_box && !seen.contains_key(&n) && other(n) {
+                        seen.insert(n, ());
+                        stack.push(n);
+                    }
+                }
+            }
+        }
+    }
+    false
 }
 
 /// The piece of `side` (6-adjacent samples) through `p`, if it has at most `max` samples and
