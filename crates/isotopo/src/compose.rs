@@ -19,8 +19,9 @@
 //!   corner goes);
 //! - a *speck* at a corner (a piece of the 6-connected side of at most [`MAX_SPECK`] samples: a
 //!   ball) moved up to [`MAX_STEPS`] unit steps, each step simple flips, or put down whole
-//!   elsewhere within that reach where nothing of its side touches it and the same piece of the
-//!   other side surrounds it (its surface, a sphere, stays in the same region);
+//!   elsewhere within that reach ([`TELEPORT_REACH`] for a single sample) where nothing of its
+//!   side touches it and the same piece of the other side surrounds it (its surface, a sphere,
+//!   stays in the same region);
 //! - a detour of three simple flips (two beside the cell, then the corner);
 //! - a handle moved off a face whose two corners are joined elsewhere (see
 //!   `Mender::swap_handle`): one flip adds the handle through the face, one cuts the path.
@@ -242,6 +243,10 @@ impl Mender {
 /// two flips without joining or deleting them.
 pub const MAX_SPECK: usize = 4;
 
+/// Farthest a single-sample speck is put down elsewhere, along each axis (a speck in a cloud of
+/// others may find room only a few samples away).
+pub const TELEPORT_REACH: i64 = 7;
+
 /// Farthest a speck is moved, in unit steps along the axes.
 pub const MAX_STEPS: usize = 3;
 
@@ -300,7 +305,11 @@ impl Mender {
         speck: &[[i64; 3]],
         side: bool,
     ) -> Option<Vec<[i64; 3]>> {
-        let r = MAX_STEPS as i64;
+        let r = if speck.len() == 1 {
+            TELEPORT_REACH
+        } else {
+            MAX_STEPS as i64
+        };
         let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
         for dz in -r..=r {
             for dy in -r..=r {
@@ -309,9 +318,7 @@ impl Mender {
                         .iter()
                         .map(|q| [q[0] + dx, q[1] + dy, q[2] + dz])
                         .collect();
-                    if !self.free_for(vol, speck, &to, side)
-                        || !same_region(vol, speck, to[0], side)
-                    {
+                    if !self.free_for(vol, speck, &to, side) {
                         continue;
                     }
                     let mut cells: Vec<Cell> =
@@ -320,7 +327,11 @@ impl Mender {
                     cells.dedup();
                     let flips: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
                     let d = change(vol, &cells, &flips);
-                    if d < 0 && best.as_ref().is_none_or(|(_, b)| d < *b) {
+                    // The region search last: it is the costly test.
+                    if d < 0
+                        && best.as_ref().is_none_or(|(_, b)| d < *b)
+                        && same_region(vol, speck, to[0], side)
+                    {
                         best = Some((to, d));
                     }
                 }
