@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
-from common import REAL, SHARED, isotopo_bin, load, skimage_betti, timed  # noqa: E402
+from common import REAL, SHARED, isotopo_bin, load, skimage_betti, timed, vtk_image  # noqa: E402
 
 
 def timed_isotopo(*args):
@@ -29,12 +29,8 @@ def timed_isotopo(*args):
 def vtk_flying_edges(values, iso, repeat=3):
     """(best seconds of `repeat` vtkFlyingEdges3D updates, triangles) on values indexed [x, y, z]."""
     import vtk
-    from vtk.util import numpy_support
 
-    img = vtk.vtkImageData()
-    img.SetDimensions(*values.shape)
-    arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(values.transpose(2, 1, 0)).ravel(), deep=True)
-    img.GetPointData().SetScalars(arr)
+    img = vtk_image(values)
     best = None
     for _ in range(repeat):
         fe = vtk.vtkFlyingEdges3D()

@@ -102,6 +102,19 @@ def load(path):
     raise ValueError(f"no loader for {path}")
 
 
+def vtk_image(values):
+    """A vtkImageData of samples indexed [x, y, z] (VTK's x runs fastest: the array goes in
+    Fortran order)."""
+    import vtk
+    from vtk.util import numpy_support
+
+    image = vtk.vtkImageData()
+    image.SetDimensions(*values.shape)
+    flat = np.ascontiguousarray(values.transpose(2, 1, 0)).ravel()
+    image.GetPointData().SetScalars(numpy_support.numpy_to_vtk(flat, deep=True))
+    return image
+
+
 def skimage_betti(solid, connectivity):
     """(b0, b1, b2, chi) of the solid (a boolean array) under connectivity 6 or 26, by
     scikit-image (docs/ARCHITECTURE.md, facts): euler_number gives chi, label gives b0 and, on the

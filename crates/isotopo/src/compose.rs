@@ -39,7 +39,7 @@ use crate::progress::Progress;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 use crate::topology::critical::{
-    count_critical, critical, each_critical, CellKind, CriticalCounts,
+    count_critical, critical, cube_bits, each_critical, CellKind, CriticalCounts,
 };
 
 /// A unit face or cube, by its kind and lowest corner (volume-local, -1 ..= n - 1).
@@ -55,7 +55,7 @@ pub struct Composition {
     /// The samples flipped, in volume-local coordinates, with the side each ends on (a sample
     /// flipped and flipped back is not listed).
     pub flips: Vec<([i64; 3], bool)>,
-    /// Changes that took two flips (a sample stepping aside first).
+    /// Changes that took two or three flips (a sample stepping aside first, or a detour).
     pub pairs: u64,
     /// Specks moved aside whole (see [`MAX_SPECK`]).
     pub moves: u64,
@@ -195,8 +195,7 @@ impl Mender {
             if !self.simple(vol, p) {
                 continue;
             }
-            let cells = cells_at(p);
-            let d = change(vol, &cells, &[p]);
+            let d = change(vol, &[p]);
             if d < 0 && best.is_none_or(|(_, b)| d < b) {
                 best = Some((p, d));
             }
@@ -225,11 +224,7 @@ impl Mender {
             if !q_simple {
                 continue;
             }
-            let mut cells = cells_at(p).to_vec();
-            cells.extend(cells_at(q));
-            cells.sort_unstable();
-            cells.dedup();
-            let d = change(vol, &cells, &[p, q]);
+            let d = change(vol, &[p, q]);
             if d < 0 && best.is_none_or(|(_, b)| d < b) {
                 best = Some(((p, q), d));
             }
@@ -250,6 +245,7 @@ pub const TELEPORT_REACH: i64 = 7;
 /// Farthest a speck is moved, in unit steps along the axes.
 pub const MAX_STEPS: usize = 3;
 
+/// Unit steps along the axes, in the order paths are tried (the results depend on it).
 const STEPS: [[i64; 3]; 6] = [
     [1, 0, 0],
     [-1, 0, 0],
@@ -321,12 +317,8 @@ impl Mender {
                     if !self.free_for(vol, speck, &to, side) {
                         continue;
                     }
-                    let mut cells: Vec<Cell> =
-                        speck.iter().chain(&to).flat_map(|&q| cells_at(q)).collect();
-                    cells.sort_unstable();
-                    cells.dedup();
                     let flips: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
-                    let d = change(vol, &cells, &flips);
+                    let d = change(vol, &flips);
                     // The region search last: it is the costly test.
                     if d < 0
                         && best.as_ref().is_none_or(|(_, b)| d < *b)
@@ -354,10 +346,7 @@ impl Mender {
                     && vol.get(t[0], t[1], t[2]) != side
                     && STEPS.iter().all(|e| {
                         let q = [t[0] + e[0], t[1] + e[1], t[2] + e[2]];
-                        // (The padding is outside: of the other side when `side` is inside.)
-                        to.contains(&q)
-                            || !within(vol, q) && side
-                            || within(vol, q) && vol.get(q[0], q[1], q[2]) != side
+                        to.contains(&q) || state(vol, q) != side
                     })
             })
     }
@@ -395,16 +384,10 @@ impl Mender {
             }
             at = next;
         }
-        let mut cells: Vec<Cell> = flips.iter().flat_map(|&q| cells_at(q)).collect();
-        cells.sort_unstable();
-        cells.dedup();
-        let count = |vol: &MaskVolume| cells.iter().filter(|&&c| is_critical(vol, c)).count();
-        let after = count(vol);
         for &q in flips.iter().rev() {
             set(vol, q, !vol.get(q[0], q[1], q[2]));
         }
-        let before = count(vol);
-        (ok && after < before).then_some(flips)
+        (ok && change(vol, &flips) < 0).then_some(flips)
     }
 }
 
@@ -414,11 +397,7 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
     let p = speck[0];
     let lo: [i64; 3] = std::array::from_fn(|c| p[c].min(t[c]) - MAX_SPECK as i64 - 1);
     let hi: [i64; 3] = std::array::from_fn(|c| p[c].max(t[c]) + MAX_SPECK as i64 + 1);
-    let other = |q: [i64; 3]| {
-        speck.contains(&q)
-            || !within(vol, q) && side
-            || within(vol, q) && vol.get(q[0], q[1], q[2]) != side
-    };
+    let other = |q: [i64; 3]| speck.contains(&q) || state(vol, q) != side;
     let mut seen: FastMap<[i64; 3], ()> = FastMap::default();
     seen.insert(t, ());
     let mut stack = vec![t];
@@ -452,12 +431,7 @@ fn small_piece(vol: &MaskVolume, p: [i64; 3], side: bool, max: usize) -> Option<
         k += 1;
         for e in STEPS {
             let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
-            let same = if within(vol, r) {
-                vol.get(r[0], r[1], r[2]) == side
-            } else {
-                !side // the padding is outside
-            };
-            if same && !piece.contains(&r) {
+            if state(vol, r) == side && !piece.contains(&r) {
                 if !within(vol, r) || piece.len() == max {
                     return None;
                 }
@@ -541,13 +515,10 @@ impl Mender {
                 if !self.simple(vol, r) {
                     continue;
                 }
-                let mut cells: Vec<Cell> = [p, q, r].iter().flat_map(|&x| cells_at(x)).collect();
-                cells.sort_unstable();
-                cells.dedup();
                 toggle(vol, q);
                 toggle(vol, p);
                 // From the state before the three: p, q, r in turn.
-                let d = change(vol, &cells, &[p, q, r]);
+                let d = change(vol, &[p, q, r]);
                 toggle(vol, p);
                 toggle(vol, q);
                 if d < 0 {
@@ -610,11 +581,8 @@ impl Mender {
                 if !cuts || self.numbers(vol, e) != (2, 1) {
                     continue;
                 }
-                let mut cells: Vec<Cell> = cells_at(b).into_iter().chain(cells_at(e)).collect();
-                cells.sort_unstable();
-                cells.dedup();
                 toggle(vol, b);
-                let d = change(vol, &cells, &[b, e]);
+                let d = change(vol, &[b, e]);
                 toggle(vol, b);
                 if d < 0 && best.as_ref().is_none_or(|(_, x)| d < *x) {
                     best = Some((vec![b, e], d));
@@ -687,9 +655,13 @@ fn within(vol: &MaskVolume, p: [i64; 3]) -> bool {
     (0..3).all(|c| p[c] >= 0 && p[c] < vol.dims[c] as i64)
 }
 
-/// The change in critical cells among `cells` if the samples `flips` are flipped in turn (the
-/// volume is left as it was).
-fn change(vol: &mut MaskVolume, cells: &[Cell], flips: &[[i64; 3]]) -> i64 {
+/// The change in critical cells if the samples `flips` are flipped in turn: among the cells
+/// that have one of them as a corner, the only ones a flip can change (the volume is left as it
+/// was).
+fn change(vol: &mut MaskVolume, flips: &[[i64; 3]]) -> i64 {
+    let mut cells: Vec<Cell> = flips.iter().flat_map(|&q| cells_at(q)).collect();
+    cells.sort_unstable();
+    cells.dedup();
     let count = |vol: &MaskVolume| cells.iter().filter(|&&c| is_critical(vol, c)).count() as i64;
     let before = count(vol);
     for &p in flips {
@@ -702,20 +674,20 @@ fn change(vol: &mut MaskVolume, cells: &[Cell], flips: &[[i64; 3]]) -> i64 {
     after - before
 }
 
-/// The corner bits of the cube with lowest corner `c`.
-fn cube_bits(vol: &MaskVolume, c: [i64; 3]) -> u8 {
-    let mut bits = 0u8;
-    for k in 0..8u8 {
-        let d = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from);
-        if vol.get(c[0] + d[0], c[1] + d[1], c[2] + d[2]) {
-            bits |= 1 << k;
-        }
-    }
-    bits
+fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
+    // Corners -1 ..= n - 1 are padded columns and rows 0 ..= n.
+    let bits = cube_bits(
+        vol.plane(c[2]),
+        vol.plane(c[2] + 1),
+        (c[0] + 1) as usize,
+        (c[1] + 1) as usize,
+    );
+    critical(kind, bits)
 }
 
-fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
-    critical(kind, cube_bits(vol, c))
+/// Which side sample `q` is on: inside, or outside (the padding beyond the volume too).
+fn state(vol: &MaskVolume, q: [i64; 3]) -> bool {
+    within(vol, q) && vol.get(q[0], q[1], q[2])
 }
 
 /// The in-volume corners of a cell.

@@ -499,8 +499,7 @@ impl Simplified {
     /// value, halfway to the next stored value inside (the same samples inside, none on it).
     pub fn mesh_iso(&self) -> f64 {
         let c = &self.classifier;
-        let raw_iso = (c.iso - c.scaling.inter) / c.scaling.slope;
-        if self.info.dtype.is_float() || raw_iso.fract() != 0.0 {
+        if self.info.dtype.is_float() || c.raw_iso().fract() != 0.0 {
             return c.iso;
         }
         let half = c.scaling.slope.abs() / 2.0;

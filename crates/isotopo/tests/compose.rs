@@ -155,6 +155,11 @@ fn shape(dims: [usize; 3], inside: impl Fn(usize, usize, usize) -> bool) -> InMe
     InMemoryVolume::from_fn(dims, |x, y, z| if inside(x, y, z) { 1.0 } else { -1.0 })
 }
 
+/// Whether `p` lies in the cube of side `n` with lowest corner `lo`.
+fn in_cube(p: [usize; 3], lo: [usize; 3], n: usize) -> bool {
+    (0..3).all(|c| (lo[c]..lo[c] + n).contains(&p[c]))
+}
+
 /// Patterns made of critical configurations, each with room around it.
 fn patterns() -> Vec<Case> {
     let d = [14, 14, 14];
@@ -174,24 +179,14 @@ fn patterns() -> Vec<Case> {
         case(
             "corner-touching cubes",
             shape(d, |x, y, z| {
-                let block = |o: [usize; 3]| {
-                    (o[0]..o[0] + 2).contains(&x)
-                        && (o[1]..o[1] + 2).contains(&y)
-                        && (o[2]..o[2] + 2).contains(&z)
-                };
-                block([4, 4, 4]) || block([6, 6, 6])
+                in_cube([x, y, z], [4, 4, 4], 2) || in_cube([x, y, z], [6, 6, 6], 2)
             }),
             0.0,
         ),
         case(
             "edge-touching cubes",
             shape(d, |x, y, z| {
-                let block = |o: [usize; 3]| {
-                    (o[0]..o[0] + 3).contains(&x)
-                        && (o[1]..o[1] + 3).contains(&y)
-                        && (o[2]..o[2] + 3).contains(&z)
-                };
-                block([3, 3, 4]) || block([6, 6, 4])
+                in_cube([x, y, z], [3, 3, 4], 3) || in_cube([x, y, z], [6, 6, 4], 3)
             }),
             0.0,
         ),
@@ -200,10 +195,7 @@ fn patterns() -> Vec<Case> {
         case(
             "checkerboard 2x2x2",
             shape(d, |x, y, z| {
-                (6..8).contains(&x)
-                    && (6..8).contains(&y)
-                    && (6..8).contains(&z)
-                    && (x + y + z) % 2 == 0
+                in_cube([x, y, z], [6, 6, 6], 2) && (x + y + z) % 2 == 0
             }),
             0.0,
         ),

@@ -24,7 +24,7 @@
 //! cannot fail. It is still verified by [`super::close`] like any other wall.
 
 use super::Operation;
-use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers};
+use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers, FACES};
 use crate::grid::MaskVolume;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
@@ -266,15 +266,6 @@ impl<'a> Ring<'a> {
 }
 
 /// The six face neighbours.
-const FACES: [[i64; 3]; 6] = [
-    [-1, 0, 0],
-    [1, 0, 0],
-    [0, -1, 0],
-    [0, 1, 0],
-    [0, 0, -1],
-    [0, 0, 1],
-];
-
 fn add(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
     [a[0] + d[0], a[1] + d[1], a[2] + d[2]]
 }

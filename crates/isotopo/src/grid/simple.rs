@@ -6,6 +6,16 @@
 use crate::grid::MaskVolume;
 use crate::topology::cases::Connectivity;
 
+/// The six face neighbours' offsets.
+pub(crate) const FACES: [[i64; 3]; 6] = [
+    [-1, 0, 0],
+    [1, 0, 0],
+    [0, -1, 0],
+    [0, 1, 0],
+    [0, 0, -1],
+    [0, 0, 1],
+];
+
 /// The 26 neighbours of a sample, and for each its adjacencies within the neighbourhood.
 pub(crate) struct Neighbourhood {
     pub(crate) offsets: [[i64; 3]; 26],

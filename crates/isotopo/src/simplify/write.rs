@@ -43,9 +43,8 @@ pub struct WallValues {
 impl WallValues {
     /// The values for samples of type `dtype` classified by `classifier`.
     pub fn new(dtype: DType, classifier: &Classifier) -> WallValues {
-        let s = classifier.scaling;
         // The isovalue in stored units.
-        let raw_iso = (classifier.iso - s.inter) / s.slope;
+        let raw_iso = classifier.raw_iso();
         let (lo, hi) = dtype.range();
         let ok = |raw: f64, inside: bool| -> bool {
             raw.is_finite()
@@ -53,7 +52,7 @@ impl WallValues {
                 && raw <= hi
                 && round_trip(dtype, raw) == raw
                 && classifier.inside_raw(raw) == inside
-                && s.apply(raw) != classifier.iso
+                && !classifier.on_iso_raw(raw)
         };
         let pick = |inside: bool| -> Option<f64> {
             let mut candidates: Vec<f64> = Vec::new();
@@ -148,11 +147,8 @@ impl<'a> SliceEditor<'a> {
         } else {
             None
         };
-        let scaling = self.classifier.scaling;
         for i in 0..slice.len() {
-            if scaling.apply(slice.get_f64(i)) == self.classifier.iso
-                && edited.binary_search(&i).is_err()
-            {
+            if self.classifier.on_iso_raw(slice.get_f64(i)) && edited.binary_search(&i).is_err() {
                 self.written.samples_at_iso += 1;
                 if let Some(v) = outside {
                     self.set(slice, i, v);

@@ -444,7 +444,7 @@ fn survey_slice(
 ) -> SliceSurvey {
     let at_iso = values.map_or(0, |v| {
         (0..v.len())
-            .filter(|&i| classifier.scaling.apply(v.get_f64(i)) == classifier.iso)
+            .filter(|&i| classifier.on_iso_raw(v.get_f64(i)))
             .count() as u64
     });
     SliceSurvey {

@@ -58,6 +58,18 @@ impl Classifier {
     pub fn inside_raw(&self, raw: f64) -> bool {
         self.inside_value(self.scaling.apply(raw))
     }
+
+    /// Whether a raw stored sample lies exactly on the isovalue (after the header's scaling):
+    /// isotopo counts it outside, VTK inside.
+    #[inline]
+    pub fn on_iso_raw(&self, raw: f64) -> bool {
+        self.scaling.apply(raw) == self.iso
+    }
+
+    /// The isovalue in stored units (before the header's scaling).
+    pub fn raw_iso(&self) -> f64 {
+        (self.iso - self.scaling.inter) / self.scaling.slope
+    }
 }
 
 /// One padded z-plane of inside bits.
