@@ -23,7 +23,7 @@ use crate::progress::Progress;
 use crate::simplify::{Outcome, SimplifyOptions, SliceEditor, WallValues};
 use crate::sweep::HandleReport;
 use crate::topology::genus::{GenusReport, SurfaceOptions};
-use crate::volume::{self, InMemoryVolume, ReadOptions, SliceReader, VolumeInfo};
+use crate::volume::{self, InMemoryVolume, ReadOptions, Samples, SliceReader, VolumeInfo};
 
 /// Where a job reads its volume from.
 pub enum Source {
@@ -492,6 +492,32 @@ impl Simplified {
         }
         self.written = Some(editor.written);
         Ok(out)
+    }
+
+    /// Applies the edits to a copy of the input that the caller holds (the Python package's
+    /// output array), z-slice by z-slice in order: `read(z, slice)` fills `slice` with z-slice
+    /// `z` of the copy (`nx·ny` samples, x fastest), `write(z, slice)` stores it back edited.
+    pub fn edit_with(
+        &mut self,
+        mut read: impl FnMut(usize, &mut Samples) -> Result<()>,
+        mut write: impl FnMut(usize, &Samples) -> Result<()>,
+    ) -> Result<()> {
+        let edits = &self.outcome.edits;
+        let mut editor = SliceEditor::new(
+            edits,
+            &self.wall_values,
+            self.classifier,
+            self.moves_at_iso(),
+        );
+        let nx = self.info.dims[0];
+        let mut slice = Samples::new(self.info.dtype);
+        for z in 0..self.info.nz() {
+            read(z, &mut slice)?;
+            editor.apply(z, nx, &mut slice)?;
+            write(z, &slice)?;
+        }
+        self.written = Some(editor.written);
+        Ok(())
     }
 
     /// The isovalue to give another mesher (VTK, scikit-image) for the surface isotopo

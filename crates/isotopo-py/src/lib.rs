@@ -1,0 +1,449 @@
+//! `isotopo._native`: the library's entry points for numpy arrays and files.
+//!
+//! The public API is the Python package (`python/isotopo/__init__.py`): it checks arguments,
+//! converts the types isotopo does not store (bool, int64, non-native byte order), draws the
+//! progress bar and wraps the reports. Each function here takes a volume, a dict of options
+//! and a progress callable, runs one library job with the GIL released, and returns the
+//! job's JSON report as a string (the command line's, same keys).
+
+mod array;
+mod progress;
+
+use std::path::PathBuf;
+
+use numpy::ndarray::{Array3, ShapeBuilder};
+use numpy::IntoPyArray;
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyKeyboardInterrupt, PyOSError, PyPermissionError, PyRuntimeError,
+    PyValueError,
+};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use isotopo::grid::Axis;
+use isotopo::loops::Metric;
+use isotopo::progress::Progress;
+use isotopo::simplify::Mode;
+use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
+use isotopo::volume::{Affine, FormatHeader, Samples, Scaling, VolumeInfo};
+use isotopo::{AnalyzeOptions, SimplifyOptions, Source};
+
+use array::{ArrayReader, ArrayView};
+use progress::PyProgress;
+
+/// Runs `job` with the GIL released, turning its error (and a panic) into a Python exception.
+fn run<T: Send>(
+    py: Python<'_>,
+    progress: &PyProgress,
+    job: impl FnOnce() -> isotopo::Result<T> + Send,
+) -> PyResult<T> {
+    let result = py.detach(|| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)).unwrap_or_else(|p| {
+            let what = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Err(isotopo::Error::Internal(format!("panic: {what}")))
+        })
+    });
+    result.map_err(|e| to_python(e, progress))
+}
+
+/// The exception for a library error: the command line's message, the type the issue of
+/// Python users expects (`ValueError` for values, `OSError` for files).
+fn to_python(e: isotopo::Error, progress: &PyProgress) -> PyErr {
+    use isotopo::Error as E;
+    let msg = e.to_string();
+    match e {
+        E::Cancelled => progress
+            .take_error()
+            .unwrap_or_else(|| PyKeyboardInterrupt::new_err("cancelled")),
+        E::Usage(_) => PyValueError::new_err(msg),
+        E::Input { ref path, .. } if path.as_os_str() == "<memory>" => PyValueError::new_err(msg),
+        E::Input { .. } => PyOSError::new_err(msg),
+        E::Io { ref source, .. } => match source.kind() {
+            std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(msg),
+            std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(msg),
+            _ => PyOSError::new_err(msg),
+        },
+        E::Internal(_) => PyRuntimeError::new_err(format!(
+            "internal error (a bug in isotopo; please report it with the volume): {msg}"
+        )),
+    }
+}
+
+/// One option from the dict the Python layer passes (every key is always present).
+fn opt<'py, T: FromPyObjectOwned<'py>>(opts: &Bound<'py, PyDict>, key: &str) -> PyResult<T> {
+    match opts.get_item(key)? {
+        Some(v) => v.extract::<T>().map_err(|e| {
+            let e: PyErr = e.into();
+            PyValueError::new_err(format!("option {key}: {e}"))
+        }),
+        None => Err(PyValueError::new_err(format!("missing option {key}"))),
+    }
+}
+
+fn surface(opts: &Bound<'_, PyDict>) -> PyResult<SurfaceOptions> {
+    let inside = match opt::<String>(opts, "inside")?.as_str() {
+        "above" => Inside::Above,
+        "below" => Inside::Below,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "inside must be \"above\" or \"below\", not {other:?}"
+            )))
+        }
+    };
+    let connectivity = match opt::<i64>(opts, "connectivity")? {
+        6 => Connectivity::Six,
+        26 => Connectivity::TwentySix,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "connectivity must be 6 or 26, not {other}"
+            )))
+        }
+    };
+    Ok(SurfaceOptions {
+        iso: opt(opts, "iso")?,
+        inside,
+        connectivity,
+    })
+}
+
+fn axis(opts: &Bound<'_, PyDict>) -> PyResult<Axis> {
+    match opt::<String>(opts, "axis")?.as_str() {
+        "x" => Ok(Axis::X),
+        "y" => Ok(Axis::Y),
+        "z" => Ok(Axis::Z),
+        other => Err(PyValueError::new_err(format!(
+            "axis must be \"x\", \"y\" or \"z\", not {other:?}"
+        ))),
+    }
+}
+
+/// The grid of an array: its dims and type, unit spacing unless `spacing` (mm) is given.
+fn array_info(view: &ArrayView, spacing: Option<[f64; 3]>) -> PyResult<VolumeInfo> {
+    let mut info = VolumeInfo::synthetic(view.dims(), view.dtype());
+    if let Some(s) = spacing {
+        if s.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(PyValueError::new_err(format!(
+                "voxel sizes must be positive, got spacing {s:?}"
+            )));
+        }
+        let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        info.affine = Affine::from_parts(identity, s, [0.0; 3]);
+    }
+    if view.dims().contains(&0) {
+        return Err(PyValueError::new_err(format!(
+            "the volume is empty: shape {:?}",
+            view.dims()
+        )));
+    }
+    Ok(info)
+}
+
+/// The volume `array` as a source for one job.
+fn source(array: &Bound<'_, PyAny>, opts: &Bound<'_, PyDict>) -> PyResult<Source> {
+    let view = ArrayView::of(array)?;
+    let info = array_info(&view, opt(opts, "spacing")?)?;
+    Ok(Source::Reader(Box::new(ArrayReader::new(view, info))))
+}
+
+/// b0, b1, b2, chi and the surfaces of the solid (the `genus --json` report).
+#[pyfunction]
+#[pyo3(signature = (volume, opts, progress=None))]
+fn genus(
+    py: Python<'_>,
+    volume: &Bound<'_, PyAny>,
+    opts: &Bound<'_, PyDict>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let surface = surface(opts)?;
+    let source = source(volume, opts)?;
+    let progress = PyProgress::new(progress);
+    let p = &progress;
+    run(py, p, move || {
+        let t = isotopo::genus(source, &surface, p)?;
+        Ok(t.to_json(&surface).to_string())
+    })
+}
+
+/// Every handle with its Reeb loop and cross loop (the `analyze --json` report).
+#[pyfunction]
+#[pyo3(signature = (volume, opts, progress=None))]
+fn analyze(
+    py: Python<'_>,
+    volume: &Bound<'_, PyAny>,
+    opts: &Bound<'_, PyDict>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let lengths = match opt::<String>(opts, "lengths")?.as_str() {
+        "edges" => isotopo::jobs::Lengths::Edges,
+        "mm" => isotopo::jobs::Lengths::Millimetres,
+        "both" => isotopo::jobs::Lengths::Both,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "lengths must be \"edges\", \"mm\" or \"both\", not {other:?}"
+            )))
+        }
+    };
+    let a = AnalyzeOptions {
+        surface: surface(opts)?,
+        axis: axis(opts)?,
+        max_slices: opt(opts, "max_slices")?,
+        tau: opt(opts, "tau")?,
+        tau_mm: None,
+        lengths,
+    };
+    let source = source(volume, opts)?;
+    let progress = PyProgress::new(progress);
+    let p = &progress;
+    run(py, p, move || {
+        let done = isotopo::analyze(source, &a, p)?;
+        Ok(done.to_json(&a).to_string())
+    })
+}
+
+/// Simplifies `volume` into `out` (the Python layer's fresh copy of it, same dims and type):
+/// the `simplify --report` JSON.
+#[pyfunction]
+#[pyo3(signature = (volume, out, opts, progress=None))]
+fn simplify(
+    py: Python<'_>,
+    volume: &Bound<'_, PyAny>,
+    out: &Bound<'_, PyAny>,
+    opts: &Bound<'_, PyDict>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let mode = match (opt(opts, "fill_only")?, opt(opts, "cut_only")?) {
+        (false, false) => Mode::Both,
+        (true, false) => Mode::FillOnly,
+        (false, true) => Mode::CutOnly,
+        (true, true) => {
+            return Err(PyValueError::new_err(
+                "fill_only and cut_only exclude each other: one, or neither (both closures)",
+            ))
+        }
+    };
+    let metric = match opt::<String>(opts, "metric")?.as_str() {
+        "edges" => Metric::Edges,
+        "mm" => Metric::Millimetres,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "metric must be \"edges\" or \"mm\", not {other:?}"
+            )))
+        }
+    };
+    let s = SimplifyOptions {
+        surface: surface(opts)?,
+        axis: axis(opts)?,
+        tau: opt(opts, "tau")?,
+        metric,
+        mode,
+        max_ratio: opt(opts, "max_ratio")?,
+        max_slices: opt(opts, "max_slices")?,
+        well_composed: opt(opts, "well_composed")?,
+    };
+    let source = source(volume, opts)?;
+    let target = ArrayView::of(out)?;
+    let progress = PyProgress::new(progress);
+    let p = &progress;
+    run(py, p, move || {
+        let mut done = isotopo::simplify(source, &s, p)?;
+        done.edit_with(
+            |z, slice| {
+                target.read(z, slice);
+                Ok(())
+            },
+            |z, slice| {
+                target.write(z, slice);
+                Ok(())
+            },
+        )?;
+        Ok(done.report(&s).to_string())
+    })
+}
+
+/// A file's header: what `save(..., like=...)` writes back.
+#[pyclass(frozen, module = "isotopo._native")]
+struct Header {
+    info: VolumeInfo,
+}
+
+#[pymethods]
+impl Header {
+    /// The file it was read from.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.info.path.clone()
+    }
+    /// The file's format (`nifti`, `nrrd`, `mgh`, `metaimage`, `npy`, `raw`, `tiff`).
+    #[getter]
+    fn format(&self) -> String {
+        format!("{:?}", self.info.format).to_lowercase()
+    }
+    /// The stored sample type (`int16`, `float32`, …).
+    #[getter]
+    fn dtype(&self) -> &'static str {
+        self.info.dtype.name()
+    }
+    /// Samples along x, y, z.
+    #[getter]
+    fn dims(&self) -> [usize; 3] {
+        self.info.dims
+    }
+    /// Voxel index -> world millimetres (RAS+, as nibabel), a 4×4 matrix as rows.
+    #[getter]
+    fn affine(&self) -> [[f64; 4]; 4] {
+        let m = self.info.affine.m;
+        [m[0], m[1], m[2], [0.0, 0.0, 0.0, 1.0]]
+    }
+    /// Voxel size in millimetres along x, y, z.
+    #[getter]
+    fn spacing(&self) -> [f64; 3] {
+        self.info.spacing()
+    }
+    /// `(slope, intercept)`: value = stored sample·slope + intercept.
+    #[getter]
+    fn scaling(&self) -> (f64, f64) {
+        (self.info.scaling.slope, self.info.scaling.inter)
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "<isotopo header of {}: {} {}×{}×{} {}>",
+            self.info.path.display(),
+            self.format(),
+            self.info.dims[0],
+            self.info.dims[1],
+            self.info.dims[2],
+            self.info.dtype.name()
+        )
+    }
+}
+
+/// Reads a volume file: `(array, header)`, the array indexed `[x, y, z]` in Fortran order, in
+/// the stored type, or in values (float32, float64 for 32-bit samples) when the header scales.
+#[pyfunction]
+fn load(py: Python<'_>, path: PathBuf) -> PyResult<(Py<PyAny>, Header)> {
+    let progress = PyProgress::new(None);
+    let p = &progress;
+    let volume = run(py, p, move || {
+        let mut reader = isotopo::volume::open(&path, &Default::default())?;
+        let mut slices = Vec::with_capacity(reader.info().nz());
+        for _ in 0..reader.info().nz() {
+            p.check()?;
+            let mut s = Samples::new(reader.info().dtype);
+            reader.read_slice(&mut s)?;
+            slices.push(s);
+        }
+        Ok(isotopo::volume::InMemoryVolume::new(
+            reader.info().clone(),
+            slices,
+        ))
+    })?;
+    let info = volume.info.clone();
+    let array = to_numpy(py, volume)?;
+    Ok((array, Header { info }))
+}
+
+/// The volume's samples as a Fortran-order numpy array (values when the header scales).
+fn to_numpy(py: Python<'_>, volume: isotopo::volume::InMemoryVolume) -> PyResult<Py<PyAny>> {
+    let dims = volume.info.dims;
+    let shape = (dims[0], dims[1], dims[2]).f();
+    let scaling = volume.info.scaling;
+    let err = |e: numpy::ndarray::ShapeError| PyRuntimeError::new_err(e.to_string());
+    if !scaling.is_identity() {
+        let wide = matches!(
+            volume.info.dtype,
+            isotopo::volume::DType::U32 | isotopo::volume::DType::I32
+        );
+        let values = volume
+            .slices
+            .iter()
+            .flat_map(|s| (0..s.len()).map(|i| scaling.apply(s.get_f64(i))));
+        return Ok(if wide {
+            let v: Vec<f64> = values.collect();
+            Array3::from_shape_vec(shape, v)
+                .map_err(err)?
+                .into_pyarray(py)
+                .into_any()
+                .unbind()
+        } else {
+            let v: Vec<f32> = values.map(|x| x as f32).collect();
+            Array3::from_shape_vec(shape, v)
+                .map_err(err)?
+                .into_pyarray(py)
+                .into_any()
+                .unbind()
+        });
+    }
+    macro_rules! stored {
+        ($($variant:ident),*) => {
+            match volume.info.dtype {
+                $(isotopo::volume::DType::$variant => {
+                    let v: Vec<_> = volume.slices.into_iter().flat_map(|s| match s {
+                        Samples::$variant(v) => v,
+                        _ => Vec::new(),
+                    }).collect();
+                    Array3::from_shape_vec(shape, v).map_err(err)?.into_pyarray(py).into_any().unbind()
+                })*
+            }
+        };
+    }
+    Ok(stored!(U8, I8, U16, I16, U32, I32, F32, F64))
+}
+
+/// Writes `array` to `path` (format from the extension), atomically, never over the file
+/// `like` was read from. With `like` and the same grid, type and no scaling, its header is
+/// kept byte for byte; otherwise its geometry (affine) is. `affine` replaces the geometry.
+#[pyfunction]
+#[pyo3(signature = (path, array, like=None, affine=None))]
+fn save(
+    py: Python<'_>,
+    path: PathBuf,
+    array: &Bound<'_, PyAny>,
+    like: Option<&Bound<'_, Header>>,
+    affine: Option<[[f64; 4]; 4]>,
+) -> PyResult<()> {
+    let view = ArrayView::of(array)?;
+    let mut info = match like {
+        Some(h) => h.get().info.clone(),
+        None => array_info(&view, None)?,
+    };
+    let same = info.dims == view.dims() && info.dtype == view.dtype();
+    if !(same && info.scaling.is_identity()) {
+        info.header = FormatHeader::None;
+        info.dims = view.dims();
+        info.dtype = view.dtype();
+        info.scaling = Scaling::IDENTITY;
+    }
+    if let Some(a) = affine {
+        if a[3] != [0.0, 0.0, 0.0, 1.0] || a.iter().flatten().any(|x| !x.is_finite()) {
+            return Err(PyValueError::new_err(
+                "affine must be a finite 4×4 matrix whose last row is 0, 0, 0, 1",
+            ));
+        }
+        info.affine = Affine {
+            m: [a[0], a[1], a[2]],
+        };
+        info.header = FormatHeader::None;
+    }
+    let progress = PyProgress::new(None);
+    run(py, &progress, move || {
+        let mut reader = ArrayReader::new(view, info);
+        isotopo::volume::convert(&mut reader, &path)
+    })
+}
+
+/// The native half of the `isotopo` package.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<Header>()?;
+    m.add_function(wrap_pyfunction!(genus, m)?)?;
+    m.add_function(wrap_pyfunction!(analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(simplify, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(save, m)?)?;
+    Ok(())
+}
