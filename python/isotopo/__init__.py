@@ -3,14 +3,16 @@
 Scans and segmentations turned into surfaces carry hundreds of tiny handles (tunnels) made by
 noise. isotopo finds every handle of the isosurface ``volume == iso``, measures each by its two
 shortest loops on the surface, and removes those smaller than ``tau`` by changing a thin wall of
-samples. Volumes are numpy arrays indexed ``[x, y, z]`` (nibabel's order); any memory order.
+samples. Volumes are numpy arrays indexed ``[x, y, z]`` (nibabel's order), in any memory order,
+or what :func:`load` returns (lengths and boxes in mm then follow the file's affine; for an
+array, pass ``spacing=``).
 
 >>> import isotopo
 >>> vol = isotopo.load("brain.nii.gz")                  # doctest: +SKIP
->>> handles = isotopo.analyze(vol.array, 127.5, spacing=vol.spacing)   # doctest: +SKIP
->>> out, report = isotopo.simplify(vol.array, 127.5, 20)              # doctest: +SKIP
->>> print(report.genus_before, "->", report.genus_after)              # doctest: +SKIP
->>> isotopo.save("brain-simplified.nii.gz", out, like=vol)            # doctest: +SKIP
+>>> handles = isotopo.analyze(vol, 127.5)                # doctest: +SKIP
+>>> out, report = isotopo.simplify(vol, 127.5, 20)      # doctest: +SKIP
+>>> print(report.genus_before, "->", report.genus_after)  # doctest: +SKIP
+>>> isotopo.save("brain-simplified.nii.gz", out, like=vol)  # doctest: +SKIP
 
 Every function takes the isosurface the same way: ``iso`` (in the array's values), ``inside``
 ("above": samples greater than iso are inside, as in CT and probability maps; "below" for signed
@@ -267,7 +269,10 @@ class _Prepared:
     """A volume as the native code reads it, and how to give results back in its type."""
 
     def __init__(self, volume: Any, iso: float, writable: bool):
+        #: A loaded file's geometry (its affine's three top rows), for lengths and boxes in mm.
+        self.affine: Optional[List[List[float]]] = None
         if isinstance(volume, Volume):
+            self.affine = volume.affine[:3].tolist()
             volume = volume.array
         arr = np.asarray(volume)
         if arr.ndim != 3:
@@ -415,6 +420,7 @@ def genus(
     opts["spacing"] = _check_spacing(spacing)
     prep = _Prepared(volume, iso, writable=False)
     _check_bool_iso(prep, iso, inside)
+    opts["affine"] = prep.affine if spacing is None else None
     d = json.loads(_run(lambda cb: _native.genus(prep.array, opts, cb), progress))
     return Topology(
         b0=d["b0"],
@@ -458,6 +464,7 @@ def analyze(
         opts["tau"] = None
     prep = _Prepared(volume, iso, writable=False)
     _check_bool_iso(prep, iso, inside)
+    opts["affine"] = prep.affine if spacing is None else None
     d = json.loads(_run(lambda cb: _native.analyze(prep.array, opts, cb), progress))
     return [Handle._from(h) for h in d["handles"]]
 
@@ -528,6 +535,7 @@ def simplify(
         raise ValueError("fill_only and cut_only exclude each other: one, or neither (both)")
     prep = _Prepared(volume, iso, writable=True)
     _check_bool_iso(prep, iso, inside)
+    opts["affine"] = prep.affine if spacing is None else None
     out = np.array(prep.array, copy=True, order="K")
     d = json.loads(_run(lambda cb: _native.simplify(prep.array, out, opts, cb), progress))
     report = Report(
@@ -546,10 +554,37 @@ def simplify(
 # Files
 
 
-def load(path: Union[str, "os.PathLike[str]"]) -> Volume:
-    """Reads a volume file (NIfTI, NRRD, MGH/MGZ, MetaImage, NumPy .npy, TIFF): its samples
-    indexed ``[x, y, z]``, its affine (RAS+) and its header for :func:`save`."""
-    array, header = _native.load(_fspath(path))
+def load(
+    path: Union[str, "os.PathLike[str]"],
+    *,
+    dims: Optional[Sequence[int]] = None,
+    dtype: Optional[Any] = None,
+    endian: Optional[str] = None,
+    offset: int = 0,
+    spacing: Spacing = None,
+) -> Volume:
+    """Reads a volume file (NIfTI, NRRD, MGH/MGZ, MetaImage, NumPy .npy, TIFF, raw): its samples
+    indexed ``[x, y, z]``, its affine (RAS+) and its header for :func:`save`.
+
+    A headerless raw file (x fastest) needs ``dims`` (nx, ny, nz) and ``dtype``; ``endian``
+    ("little", the default, or "big") and ``offset`` (bytes to skip) may follow. ``spacing``
+    (mm) gives the voxel size of the formats that carry none (raw, .npy, TIFF).
+    """
+    raw = {
+        "dims": None if dims is None else [int(n) for n in dims],
+        "dtype": None if dtype is None else np.dtype(dtype).name,
+        "endian": endian,
+        "offset": int(offset),
+        "spacing": _check_spacing(spacing),
+    }
+    try:
+        array, header = _native.load(_fspath(path), raw)
+    except ValueError as e:
+        if "--raw-dims" not in str(e):
+            raise
+        raise ValueError(
+            f"{path}: a headerless raw file needs dims=(nx, ny, nz) and dtype= (x fastest)"
+        ) from None
     return Volume(array=array, affine=np.asarray(header.affine, dtype=np.float64), header=header)
 
 

@@ -32,7 +32,9 @@ def analyze(volume: np.ndarray, opts: Dict[str, Any], progress: _Progress = None
 def simplify(
     volume: np.ndarray, out: np.ndarray, opts: Dict[str, Any], progress: _Progress = None
 ) -> str: ...
-def load(path: Union[str, PathLike[str]]) -> Tuple[np.ndarray, Header]: ...
+def load(
+    path: Union[str, PathLike[str]], raw: Optional[Dict[str, Any]] = None
+) -> Tuple[np.ndarray, Header]: ...
 def save(
     path: Union[str, PathLike[str]],
     array: np.ndarray,

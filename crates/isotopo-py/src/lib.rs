@@ -142,10 +142,14 @@ fn array_info(view: &ArrayView, spacing: Option<[f64; 3]>) -> PyResult<VolumeInf
     Ok(info)
 }
 
-/// The volume `array` as a source for one job.
+/// The volume `array` as a source for one job, with the geometry of `opts`: `affine` (the
+/// three top rows, from a loaded file) or else `spacing`.
 fn source(array: &Bound<'_, PyAny>, opts: &Bound<'_, PyDict>) -> PyResult<Source> {
     let view = ArrayView::of(array)?;
-    let info = array_info(&view, opt(opts, "spacing")?)?;
+    let mut info = array_info(&view, opt(opts, "spacing")?)?;
+    if let Some(m) = opt::<Option<[[f64; 4]; 3]>>(opts, "affine")? {
+        info.affine = Affine { m };
+    }
     Ok(Source::Reader(Box::new(ArrayReader::new(view, info))))
 }
 
@@ -321,14 +325,55 @@ impl Header {
     }
 }
 
+/// How to read a headerless raw file (and the spacing of NumPy and TIFF files, which carry
+/// none): the dict `{dims, dtype, endian, offset, spacing}`, each key optional.
+fn read_options(raw: Option<&Bound<'_, PyDict>>) -> PyResult<isotopo::volume::ReadOptions> {
+    let mut r = isotopo::volume::ReadOptions::default();
+    let Some(raw) = raw else { return Ok(r) };
+    let get = |key: &str| raw.get_item(key).ok().flatten().filter(|v| !v.is_none());
+    if let Some(v) = get("dims") {
+        r.raw_dims = Some(v.extract()?);
+    }
+    if let Some(v) = get("dtype") {
+        let name: String = v.extract()?;
+        r.raw_type = Some(isotopo::volume::DType::parse(&name).ok_or_else(|| {
+            PyValueError::new_err(format!("unknown raw sample type {name:?}; use uint8, int8, uint16, int16, uint32, int32, float32 or float64"))
+        })?);
+    }
+    if let Some(v) = get("endian") {
+        r.raw_endian = Some(match v.extract::<String>()?.as_str() {
+            "little" => isotopo::volume::Endian::Little,
+            "big" => isotopo::volume::Endian::Big,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "endian must be \"little\" or \"big\", not {other:?}"
+                )))
+            }
+        });
+    }
+    if let Some(v) = get("offset") {
+        r.raw_offset = v.extract()?;
+    }
+    if let Some(v) = get("spacing") {
+        r.raw_spacing = Some(v.extract()?);
+    }
+    Ok(r)
+}
+
 /// Reads a volume file: `(array, header)`, the array indexed `[x, y, z]` in Fortran order, in
 /// the stored type, or in values (float32, float64 for 32-bit samples) when the header scales.
 #[pyfunction]
-fn load(py: Python<'_>, path: PathBuf) -> PyResult<(Py<PyAny>, Header)> {
+#[pyo3(signature = (path, raw=None))]
+fn load(
+    py: Python<'_>,
+    path: PathBuf,
+    raw: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(Py<PyAny>, Header)> {
+    let read = read_options(raw)?;
     let progress = PyProgress::new(None);
     let p = &progress;
     let volume = run(py, p, move || {
-        let mut reader = isotopo::volume::open(&path, &Default::default())?;
+        let mut reader = isotopo::volume::open(&path, &read)?;
         let mut slices = Vec::with_capacity(reader.info().nz());
         for _ in 0..reader.info().nz() {
             p.check()?;
@@ -410,6 +455,9 @@ fn save(
         Some(h) => h.get().info.clone(),
         None => array_info(&view, None)?,
     };
+    // A refused path (over the input or its data file, or in no directory) is a file error.
+    isotopo::volume::check_output_path(&path, &info)
+        .map_err(|e| PyOSError::new_err(e.to_string()))?;
     let same = info.dims == view.dims() && info.dtype == view.dtype();
     if !(same && info.scaling.is_identity()) {
         info.header = FormatHeader::None;
