@@ -442,6 +442,7 @@ def analyze(
     spacing: Spacing = None,
     tau: Optional[float] = None,
     lengths: str = "edges",
+    max_slices: Optional[int] = None,
     progress: Progress = None,
 ) -> List[Handle]:
     """Every handle of the isosurface, each with its Reeb loop (round its tunnel) and cross
@@ -450,6 +451,7 @@ def analyze(
     ``lengths``: loops shortest in voxel "edges" (what simplify's tau counts), in "mm" along
     the interpolated surface (with ``spacing``), or "both". ``tau`` (edges): loops longer than
     this are reported only as longer (faster). ``axis``: the sweep's direction.
+    ``max_slices``: planes held in memory at once (the rest in a scratch file).
     """
     iso = _check_iso(iso)
     opts = _surface_opts(iso, inside, connectivity)
@@ -458,7 +460,7 @@ def analyze(
         spacing=_check_spacing(spacing),
         lengths=_check_choice("lengths", lengths, ("edges", "mm", "both")),
         tau=_check_tau(tau, allow_zero=False) if tau is not None else None,
-        max_slices=None,
+        max_slices=_check_max_slices(max_slices),
     )
     if opts["tau"] is not None and math.isinf(opts["tau"]):
         opts["tau"] = None
@@ -467,6 +469,16 @@ def analyze(
     opts["affine"] = prep.affine if spacing is None else None
     d = json.loads(_run(lambda cb: _native.analyze(prep.array, opts, cb), progress))
     return [Handle._from(h) for h in d["handles"]]
+
+
+def _check_max_slices(max_slices: Any) -> Optional[int]:
+    if max_slices is None:
+        return None
+    if isinstance(max_slices, bool) or not isinstance(max_slices, (int, np.integer)):
+        raise TypeError(f"max_slices must be an integer, not {max_slices!r}")
+    if max_slices < 0:
+        raise ValueError(f"max_slices must be 0 (the whole volume) or more, got {max_slices}")
+    return int(max_slices)
 
 
 def _check_tau(tau: Any, allow_zero: bool) -> float:
@@ -518,8 +530,6 @@ def simplify(
         max_ratio = float(max_ratio)
         if not max_ratio >= 1:
             raise ValueError(f"the maximum ratio must be at least 1, got {max_ratio}")
-    if max_slices is not None and (not isinstance(max_slices, (int, np.integer)) or max_slices < 0):
-        raise ValueError(f"max_slices must be a non-negative integer, got {max_slices!r}")
     opts.update(
         tau=_check_tau(tau, allow_zero=True),
         fill_only=bool(fill_only),
@@ -529,7 +539,7 @@ def simplify(
         spacing=_check_spacing(spacing),
         metric=_check_choice("metric", metric, ("edges", "mm")),
         well_composed=bool(well_composed),
-        max_slices=None if max_slices is None else int(max_slices),
+        max_slices=_check_max_slices(max_slices),
     )
     if fill_only and cut_only:
         raise ValueError("fill_only and cut_only exclude each other: one, or neither (both)")

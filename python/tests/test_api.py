@@ -198,6 +198,17 @@ def test_simplify_keeps_handles_at_least_tau():
         assert len(left) == rep.genus_after == betti(out > iso)[1]
 
 
+def test_a_window_of_planes_gives_the_same_result():
+    rng = np.random.default_rng(RNG_SEED + 9)
+    v = noise(rng, (14, 15, 30))
+    iso = float(np.median(v))
+    whole, r1 = isotopo.simplify(v, iso, math.inf, max_slices=0)
+    window, r2 = isotopo.simplify(v, iso, math.inf, max_slices=4)
+    assert np.array_equal(whole, window) and r1.genus_after == r2.genus_after == 0
+    a = [h.size for h in isotopo.analyze(v, iso, max_slices=4)]
+    assert a == [h.size for h in isotopo.analyze(v, iso)]
+
+
 def test_simplify_tau_zero_changes_no_topology():
     rng = np.random.default_rng(RNG_SEED + 8)
     v = noise(rng, (16, 16, 16))
@@ -334,6 +345,7 @@ BAD = [
     (lambda: isotopo.save("/nonexistent/dir/out.nii.gz", torus()), OSError, "does not exist"),
     (lambda: isotopo.save("out.unknown", torus()), ValueError, "extension"),
     (lambda: isotopo.load(12), TypeError, "path"),
+    (lambda: isotopo.simplify(torus(), 0.0, 5, max_slices=-1), ValueError, "max_slices"),
 ]
 
 
@@ -341,6 +353,12 @@ BAD = [
 def test_bad_input_raises_a_clear_exception(call, error, words):
     with pytest.raises(error, match=words):
         call()
+
+
+def test_a_panic_is_an_exception_not_an_abort():
+    with pytest.raises(RuntimeError, match="internal error.*a deliberate panic"):
+        isotopo._native._panic_for_tests()
+    assert isotopo.genus(torus(), 0.0).b1 == 1  # and the module still works
 
 
 def test_a_truncated_file_is_an_oserror(tmp_path):

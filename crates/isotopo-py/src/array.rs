@@ -113,6 +113,11 @@ impl ArrayView {
         out.reserve(nx * ny);
         for y in 0..ny {
             let row = self.row(y, z);
+            if let Some(run) = self.contiguous::<T>(row) {
+                // SAFETY: the row's nx samples are adjacent and aligned (checked), inside the array.
+                out.extend_from_slice(unsafe { std::slice::from_raw_parts(run, nx) });
+                continue;
+            }
             for x in 0..nx {
                 let p = row.wrapping_offset(x as isize * self.strides[0]) as *const T;
                 // SAFETY: [x, y, z] is inside the array (x < nx, y < ny, z < nz), numpy
@@ -120,6 +125,14 @@ impl ArrayView {
                 out.push(unsafe { p.read_unaligned() });
             }
         }
+    }
+
+    /// The row starting at `row` as an aligned run of adjacent samples (x fastest in memory,
+    /// Fortran order), which copies as one block; `None` otherwise.
+    fn contiguous<T: Sample>(&self, row: *mut u8) -> Option<*const T> {
+        let adjacent = self.strides[0] == std::mem::size_of::<T>() as isize;
+        let aligned = (row as usize).is_multiple_of(std::mem::align_of::<T>());
+        (adjacent && aligned).then_some(row as *const T)
     }
 
     /// Writes `slice` (x fastest) to z-slice `z`. Only for arrays the caller made writable and
@@ -132,10 +145,17 @@ impl ArrayView {
         let [nx, ny, _] = self.dims;
         for y in 0..ny {
             let row = self.row(y, z);
-            for x in 0..nx {
+            let samples = &samples[y * nx..(y + 1) * nx];
+            if let Some(run) = self.contiguous::<T>(row) {
+                // SAFETY: as in `gather`; the array is the caller's own writable copy.
+                unsafe { std::slice::from_raw_parts_mut(run as *mut T, nx) }
+                    .copy_from_slice(samples);
+                continue;
+            }
+            for (x, &v) in samples.iter().enumerate() {
                 let p = row.wrapping_offset(x as isize * self.strides[0]) as *mut T;
                 // SAFETY: as in `gather`; the array is the caller's own writable copy.
-                unsafe { p.write_unaligned(samples[y * nx + x]) };
+                unsafe { p.write_unaligned(v) };
             }
         }
     }

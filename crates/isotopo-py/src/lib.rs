@@ -483,6 +483,16 @@ fn save(
     })
 }
 
+/// Panics inside a job, as a bug in the library would: the tests check that it arrives as a
+/// `RuntimeError`, not as an abort of the interpreter.
+#[pyfunction]
+fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
+    let progress = PyProgress::new(None);
+    run(py, &progress, || -> isotopo::Result<()> {
+        panic!("a deliberate panic")
+    })
+}
+
 /// The native half of the `isotopo` package.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -493,5 +503,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simplify, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
 }
