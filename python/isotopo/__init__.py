@@ -50,7 +50,8 @@ __all__ = [
     "Volume",
 ]
 
-#: ``progress(stage, done, total)``; ``None``: a tqdm bar when interactive; ``False``: nothing.
+#: ``progress(stage, done, total)``; ``None``: a tqdm bar when tqdm is installed and the session
+#: interactive; ``True``: a tqdm bar in any case; ``False``: nothing.
 Progress = Union[Callable[[str, int, int], Any], None, bool]
 Spacing = Optional[Sequence[float]]
 
@@ -149,7 +150,8 @@ class Handle:
     size: Optional[int]
     #: The same in millimetres.
     size_mm: Optional[float]
-    #: How the sweep found it (a Reeb-graph cycle, or within one ribbon).
+    #: How the sweep found it: "reeb_cycle" (a cycle of the Reeb graph) or "intra_ribbon"
+    #: (within one ribbon, by a small volume's own sweep).
     kind: str
     #: The surface it is on (an index into ``genus(...).surfaces``).
     surface: int

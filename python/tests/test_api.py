@@ -184,6 +184,15 @@ def test_simplify_tau_inf_on_random_volumes(mode, conn):
             assert betti(out > iso, other) == after
 
 
+def test_simplify_inside_below():
+    sdf = -two_tori()  # a signed distance field: negative inside
+    assert betti(sdf < 0) == (1, 2, 0)
+    out, rep = isotopo.simplify(sdf, 0.0, math.inf, inside="below")
+    assert (rep.genus_before, rep.genus_after) == (2, 0)
+    assert betti(out < 0) == (1, 0, 0)
+    assert np.count_nonzero((out < 0) != (sdf < 0)) == rep.samples_changed
+
+
 def test_simplify_keeps_handles_at_least_tau():
     rng = np.random.default_rng(RNG_SEED + 7)
     for case in range(8):

@@ -10,6 +10,10 @@ from conftest import SHARED, betti, load_real, real_volumes, reference
 # Volumes small enough (or with few enough handles) to analyze in a few seconds each.
 ANALYZE = {"tooth_103x94x161_uint8.raw", "buddha-sdf.nii.gz", "freesurfer-wm.mgz",
            "cranium-ct.nii.gz", "mni2009a-gm.nii.gz"}
+# The two largest are simplified by scripts/crosscheck_simplify.py (the same library call; the
+# Python output equals the command line's, test_api.py shows on the sample): here their oracle
+# alone would take 50 s of CI.
+SIMPLIFY_ELSEWHERE = {"bunny-ct.nii.gz", "embryo.nrrd"}
 
 
 @pytest.mark.parametrize("name,iso", real_volumes())
@@ -23,6 +27,8 @@ def test_real_volume(name, iso):
     if name in ANALYZE:
         handles = isotopo.analyze(vol, iso, tau=20, progress=False)
         assert len(handles) == want[6][1]
+    if name in SIMPLIFY_ELSEWHERE:
+        return
     out, rep = isotopo.simplify(vol, iso, 20, progress=False)
     assert out.dtype == vol.array.dtype and out.shape == vol.array.shape
     before = want[6]
