@@ -104,8 +104,13 @@ class Topology:
     b2: int
     #: Euler characteristic of the solid, b0 - b1 + b2.
     chi: int
-    surfaces: List[Surface]
+    #: Every closed surface, by decreasing genus.
+    surfaces: List[Surface] = field(repr=False)
     _json: Dict[str, Any] = field(repr=False, compare=False)
+
+    def __repr__(self) -> str:
+        return (f"Topology(b0={self.b0}, b1={self.b1}, b2={self.b2}, chi={self.chi}, "
+                f"{len(self.surfaces)} surfaces)")
 
     @property
     def genus(self) -> int:
@@ -193,16 +198,21 @@ class Report:
     #: Total genus (handles) before and after.
     genus_before: int
     genus_after: int
-    #: The handles removed, each as a dict (size, loop lengths, operation, samples, bbox, …).
-    removed: List[Dict[str, Any]]
+    #: The closures made, each a dict: the loop closed (size, lengths, operation "collapse" or
+    #: "pinch"), the samples changed, its box, and how many handles it removed ("handles").
+    removed: List[Dict[str, Any]] = field(repr=False)
     #: The handles kept (size at least tau, or a closure refused), each as a dict.
-    kept: List[Dict[str, Any]]
+    kept: List[Dict[str, Any]] = field(repr=False)
     #: Samples whose side of the isovalue changed (walls and the well-composed step).
     samples_changed: int
     #: The isovalue to give another mesher (skimage.measure.marching_cubes, VTK) for the
     #: surface isotopo simplified (differs from iso only for integer samples at the isovalue).
     mesh_iso: float
     _json: Dict[str, Any] = field(repr=False, compare=False)
+
+    def __repr__(self) -> str:
+        return (f"Report(genus_before={self.genus_before}, genus_after={self.genus_after}, "
+                f"samples_changed={self.samples_changed}, mesh_iso={self.mesh_iso})")
 
     def to_dict(self) -> Dict[str, Any]:
         """The command line's ``simplify --report`` JSON (same keys)."""
@@ -451,8 +461,10 @@ def analyze(
     loop (across it), the shortest on the whole surface; ``size`` is the shorter one's length.
 
     ``lengths``: loops shortest in voxel "edges" (what simplify's tau counts), in "mm" along
-    the interpolated surface (with ``spacing``), or "both". ``tau`` (edges): loops longer than
-    this are reported only as longer (faster). ``axis``: the sweep's direction.
+    the interpolated surface (with ``spacing``), or "both". ``tau`` (edges, faster): loops are
+    measured exactly below it; a handle with none below it gets some longer Reeb loop (its
+    ``size`` is then at least tau, not necessarily its shortest) and no cross loop.
+    ``axis``: the sweep's direction.
     ``max_slices``: planes held in memory at once (the rest in a scratch file).
     """
     iso = _check_iso(iso)
