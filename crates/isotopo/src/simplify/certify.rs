@@ -113,3 +113,49 @@ pub(super) fn certificate_holds(
     ));
     rank == Some(2 * kept.len())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::NoProgress;
+    use crate::simplify::Kept;
+    use crate::volume::{BBox, InMemoryVolume};
+
+    fn kept(reason: KeepReason) -> Vec<(i64, Kept)> {
+        let k = Kept {
+            size: Some(30),
+            size_mm: Some(30.0),
+            reeb: Some(30),
+            cross: Some(60),
+            kind: crate::sweep::HandleKind::ReebCycle,
+            reason,
+            bbox: BBox::EMPTY,
+        };
+        vec![(0, k)]
+    }
+
+    /// A torus's cut and Reeb loop cross once: they certify its one handle. The same curve
+    /// twice spans nothing, and a handle kept for another reason than its size is no proof.
+    #[test]
+    fn the_certificate_needs_curves_that_span_every_loop() {
+        let torus = InMemoryVolume::from_fn([30, 30, 12], |x, y, z| {
+            let (x, y, z) = (x as f32 - 14.5, y as f32 - 14.5, z as f32 - 5.5);
+            3.5 - ((x * x + y * y).sqrt() - 9.0).hypot(z)
+        });
+        let opts = crate::AnalyzeOptions::default();
+        let a = crate::analyze(crate::Source::from(torus), &opts, &NoProgress).unwrap();
+        assert_eq!(a.loops.len(), 1);
+        let (p, q) = a.loops[0]
+            .basis
+            .clone()
+            .expect("a measured handle has its curves");
+        let conn = Connectivity::Six;
+        let holds = |reason, curves: Vec<Vec<Vertex>>| {
+            certificate_holds(&a.masks, conn, &kept(reason), &[(0, curves)], &NoProgress)
+        };
+        assert!(holds(KeepReason::Size, vec![p.clone(), q.clone()]));
+        assert!(!holds(KeepReason::Size, vec![p.clone(), p.clone()]));
+        assert!(!holds(KeepReason::Size, vec![q.clone()]));
+        assert!(!holds(KeepReason::ClosureFailed, vec![p, q]));
+    }
+}
