@@ -210,3 +210,91 @@ pub(crate) fn write_edited(
     writer.finish(&info)?;
     Ok(editor.written)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topology::Inside;
+    use crate::volume::Scaling;
+
+    /// The wall values are stored values of the type, strictly on their side, never on the
+    /// isovalue, and the nearest such: no integer between them and the isovalue; for floats
+    /// within the first margin (2^-10 of the isovalue, at least 2^-10).
+    #[test]
+    fn wall_values_are_the_nearest_on_each_side() {
+        let types = [
+            DType::U8,
+            DType::I8,
+            DType::U16,
+            DType::I16,
+            DType::U32,
+            DType::I32,
+            DType::F32,
+            DType::F64,
+        ];
+        let scalings = [
+            Scaling::IDENTITY,
+            Scaling {
+                slope: 2.0,
+                inter: -1024.0,
+            },
+        ];
+        let mut checked = 0;
+        for dtype in types {
+            for scaling in scalings {
+                for iso in [0.5, 0.0, 1.0, 127.5, -3.0, 0.1, 1000.25, -1023.0] {
+                    for inside in [Inside::Above, Inside::Below] {
+                        let c = Classifier {
+                            iso,
+                            inside,
+                            scaling,
+                        };
+                        let w = WallValues::new(dtype, &c);
+                        for (value, side) in [(w.inside, true), (w.outside, false)] {
+                            let what = format!("{dtype} {scaling:?} iso {iso} {inside:?} {side}");
+                            check(dtype, &c, value, side, &what);
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 8 * 2 * 8 * 2 * 2);
+    }
+
+    fn check(dtype: DType, c: &Classifier, value: Option<f64>, side: bool, what: &str) {
+        let raw_iso = c.raw_iso();
+        let (lo, hi) = dtype.range();
+        let Some(v) = value else {
+            // Only when the whole range of the type is on the other side.
+            let ends = [lo, hi];
+            assert!(
+                ends.iter()
+                    .all(|&e| c.inside_raw(e) != side || c.on_iso_raw(e)),
+                "{what}"
+            );
+            return;
+        };
+        assert!(v >= lo && v <= hi, "{what}: {v} outside the type");
+        assert_eq!(c.inside_raw(v), side, "{what}: {v} on the wrong side");
+        assert!(!c.on_iso_raw(v), "{what}: {v} on the isovalue");
+        if dtype.is_float() {
+            if dtype == DType::F32 {
+                assert_eq!(v as f32 as f64, v, "{what}: {v} is not a float32");
+            }
+            let eps = raw_iso.abs().max(1.0) / 1024.0;
+            assert!(
+                (v - raw_iso).abs() <= 1.01 * eps,
+                "{what}: {v} is not the nearest"
+            );
+        } else {
+            assert_eq!(v.fract(), 0.0, "{what}: {v} is not an integer");
+            let closer = v - (v - raw_iso).signum();
+            let valid = closer >= lo && closer <= hi && c.inside_raw(closer) == side;
+            assert!(
+                !valid || c.on_iso_raw(closer),
+                "{what}: {closer} is nearer than {v}"
+            );
+        }
+    }
+}
