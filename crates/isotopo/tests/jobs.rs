@@ -356,3 +356,49 @@ fn removal_reports_how_far_its_wall_reaches() {
         (worst(|r| r.max_distance), worst(|r| r.max_distance_mm))
     );
 }
+
+/// What writing reports besides the edits is what it did, recomputed from the input and the
+/// output: the samples left exactly at the isovalue (counted, and moved just outside for
+/// floating-point samples) and the largest change of any sample.
+#[test]
+fn writing_reports_the_samples_at_the_isovalue_and_the_largest_move() {
+    let (mut vol, iso) = noise(7);
+    let iso = iso as f32 as f64;
+    let [nx, ny, nz] = vol.dims();
+    for k in 0..60 {
+        let i = (k * 7919) % (nx * ny * nz);
+        vol.set(i % nx, (i / nx) % ny, i / (nx * ny), iso);
+    }
+    let opts = SimplifyOptions {
+        surface: SurfaceOptions {
+            iso,
+            ..SurfaceOptions::default()
+        },
+        tau: f64::INFINITY,
+        ..SimplifyOptions::default()
+    };
+    let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress).unwrap();
+    let out = done.edited().unwrap();
+    let written = done.written.expect("edited() records what it wrote");
+    let edited: std::collections::HashSet<[i64; 3]> =
+        done.outcome.edits.iter().map(|e| e.0).collect();
+    let (mut at_iso, mut largest) = (0u64, 0.0f64);
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let (a, b) = (vol.get(x, y, z), out.get(x, y, z));
+                assert_ne!(b, iso, "a sample left at the isovalue");
+                largest = largest.max((a - b).abs());
+                let q = [x as i64, y as i64, z as i64];
+                if a == iso && !edited.contains(&q) {
+                    at_iso += 1;
+                    assert!(b < iso, "a sample at the isovalue not moved outside");
+                }
+            }
+        }
+    }
+    assert!(at_iso > 0);
+    assert!(written.at_iso_moved);
+    assert_eq!(written.samples_at_iso, at_iso);
+    assert_eq!(written.largest_move, largest);
+}
