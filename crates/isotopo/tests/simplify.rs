@@ -516,6 +516,15 @@ fn max_ratio_keeps_long_skinny_handles() {
         let mut opts = options(f64::INFINITY, Mode::Both, conn);
         let out = expect_ok(check("thin ring", &vol, 0.0, Axis::Z, &opts));
         assert_eq!(out.removed.len(), 1);
+        // A handle exactly at the ratio is not "more than" it: removed.
+        let r = &out.removed[0];
+        let (a, b) = (r.reeb.unwrap() as f64, r.cross.unwrap() as f64);
+        let ratio = a.max(b) / a.min(b);
+        assert!(ratio > 2.0, "the ring is skinny: {a} vs {b}");
+        opts.max_ratio = Some(ratio);
+        let mut m = masks(&vol, 0.0, conn, Axis::Z);
+        let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
+        assert_eq!(out.removed.len(), 1, "ratio {ratio}: {:?}", out.kept);
         opts.max_ratio = Some(2.0);
         let mut m = masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
