@@ -63,6 +63,11 @@ _STORED = {np.dtype(t) for t in ("u1", "i1", "u2", "i2", "u4", "i4", "f4", "f8")
 # Results
 
 
+def _bbox(b: Dict[str, Any]) -> Tuple[Tuple[int, int, int], Tuple[int, int, int]]:
+    """A report's ``{"min": [x, y, z], "max": [x, y, z]}`` as two tuples."""
+    return (tuple(b["min"]), tuple(b["max"]))
+
+
 @dataclass(frozen=True)
 class Surface:
     """One closed surface of the isosurface."""
@@ -81,14 +86,13 @@ class Surface:
 
     @classmethod
     def _from(cls, d: Dict[str, Any]) -> "Surface":
-        b = d["bbox"]
         return cls(
             id=d["id"],
             genus=d["genus"],
             chi=d["chi"],
             encloses=d["encloses"],
             area=d["area"],
-            bbox=(tuple(b["min"]), tuple(b["max"])),
+            bbox=_bbox(d["bbox"]),
         )
 
 
@@ -172,14 +176,13 @@ class Handle:
 
     @classmethod
     def _from(cls, d: Dict[str, Any]) -> "Handle":
-        b = d["bbox"]
         return cls(
             id=d["id"],
             size=d.get("size"),
             size_mm=d.get("size_mm"),
             kind=d["kind"],
             surface=d["surface"],
-            bbox=(tuple(b["min"]), tuple(b["max"])),
+            bbox=_bbox(d["bbox"]),
             reeb_loop=Loop._from(d.get("reeb_loop")),
             cross_loop=Loop._from(d.get("cross_loop")),
             exact=bool(d.get("exact", True)),

@@ -142,6 +142,21 @@ fn array_info(view: &ArrayView, spacing: Option<[f64; 3]>) -> PyResult<VolumeInf
     Ok(info)
 }
 
+/// Runs `job` on `volume` (with the geometry of `opts`), reporting to `progress`, with the GIL
+/// released.
+fn run_job<T: Send>(
+    py: Python<'_>,
+    volume: &Bound<'_, PyAny>,
+    opts: &Bound<'_, PyDict>,
+    progress: Option<Py<PyAny>>,
+    job: impl FnOnce(Source, &dyn Progress) -> isotopo::Result<T> + Send,
+) -> PyResult<T> {
+    let source = source(volume, opts)?;
+    let progress = PyProgress::new(progress);
+    let p = &progress;
+    run(py, p, move || job(source, p))
+}
+
 /// The volume `array` as a source for one job, with the geometry of `opts`: `affine` (the
 /// three top rows, from a loaded file) or else `spacing`.
 fn source(array: &Bound<'_, PyAny>, opts: &Bound<'_, PyDict>) -> PyResult<Source> {
@@ -163,10 +178,7 @@ fn genus(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let surface = surface(opts)?;
-    let source = source(volume, opts)?;
-    let progress = PyProgress::new(progress);
-    let p = &progress;
-    run(py, p, move || {
+    run_job(py, volume, opts, progress, |source, p| {
         let t = isotopo::genus(source, &surface, p)?;
         Ok(t.to_json(&surface).to_string())
     })
@@ -199,10 +211,7 @@ fn analyze(
         tau_mm: None,
         lengths,
     };
-    let source = source(volume, opts)?;
-    let progress = PyProgress::new(progress);
-    let p = &progress;
-    run(py, p, move || {
+    run_job(py, volume, opts, progress, |source, p| {
         let done = isotopo::analyze(source, &a, p)?;
         Ok(done.to_json(&a).to_string())
     })
@@ -248,11 +257,8 @@ fn simplify(
         max_slices: opt(opts, "max_slices")?,
         well_composed: opt(opts, "well_composed")?,
     };
-    let source = source(volume, opts)?;
     let target = ArrayView::of(out)?;
-    let progress = PyProgress::new(progress);
-    let p = &progress;
-    run(py, p, move || {
+    run_job(py, volume, opts, progress, |source, p| {
         let mut done = isotopo::simplify(source, &s, p)?;
         done.edit_with(
             |z, slice| {

@@ -467,6 +467,7 @@ impl Simplified {
     pub fn write(&mut self, path: impl AsRef<Path>, progress: &dyn Progress) -> Result<()> {
         let path = path.as_ref();
         volume::check_output_path(path, &self.info)?;
+        // Built from the fields (not `self.editor()`): the input is borrowed mutably beside it.
         let edits = &self.outcome.edits;
         let move_at_iso = self.moves_at_iso();
         let editor = SliceEditor::new(edits, &self.wall_values, self.classifier, move_at_iso);
@@ -479,13 +480,7 @@ impl Simplified {
     pub fn edited(&mut self) -> Result<InMemoryVolume> {
         self.input.rewind()?;
         let mut out = InMemoryVolume::from_reader(self.input.as_mut())?;
-        let edits = &self.outcome.edits;
-        let mut editor = SliceEditor::new(
-            edits,
-            &self.wall_values,
-            self.classifier,
-            self.moves_at_iso(),
-        );
+        let mut editor = self.editor();
         let nx = self.info.dims[0];
         for (z, slice) in out.slices.iter_mut().enumerate() {
             editor.apply(z, nx, slice)?;
@@ -502,13 +497,7 @@ impl Simplified {
         mut read: impl FnMut(usize, &mut Samples) -> Result<()>,
         mut write: impl FnMut(usize, &Samples) -> Result<()>,
     ) -> Result<()> {
-        let edits = &self.outcome.edits;
-        let mut editor = SliceEditor::new(
-            edits,
-            &self.wall_values,
-            self.classifier,
-            self.moves_at_iso(),
-        );
+        let mut editor = self.editor();
         let nx = self.info.dims[0];
         let mut slice = Samples::new(self.info.dtype);
         for z in 0..self.info.nz() {
@@ -533,6 +522,16 @@ impl Simplified {
             crate::topology::Inside::Above => c.iso + half,
             crate::topology::Inside::Below => c.iso - half,
         }
+    }
+
+    /// The editor that applies the edits to the input's slices, in order.
+    fn editor(&self) -> SliceEditor<'_> {
+        SliceEditor::new(
+            &self.outcome.edits,
+            &self.wall_values,
+            self.classifier,
+            self.moves_at_iso(),
+        )
     }
 
     /// Whether samples at the isovalue are moved outside when writing (see

@@ -309,6 +309,18 @@ fn a_handle_of_size_tau_is_kept() {
     }
 }
 
+/// Options removing every handle of the isosurface at `iso`.
+fn every_handle(iso: f64) -> SimplifyOptions {
+    SimplifyOptions {
+        surface: SurfaceOptions {
+            iso,
+            ..SurfaceOptions::default()
+        },
+        tau: f64::INFINITY,
+        ..SimplifyOptions::default()
+    }
+}
+
 /// Each removal's `max_distance` is what it says: the farthest sample the wall changed from the
 /// polyline of the loop it closed, in voxels and, with voxels 2 × 1 × 0.5 mm, in millimetres.
 /// Recomputed here from the samples and points the report lists.
@@ -318,14 +330,7 @@ fn removal_reports_how_far_its_wall_reaches() {
     let spacing = [2.0, 1.0, 0.5];
     let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     vol.info.affine = isotopo::volume::Affine::from_parts(identity, spacing, [3.0, -2.0, 1.0]);
-    let opts = SimplifyOptions {
-        surface: SurfaceOptions {
-            iso,
-            ..SurfaceOptions::default()
-        },
-        tau: f64::INFINITY,
-        ..SimplifyOptions::default()
-    };
+    let opts = every_handle(iso);
     let done = isotopo::simplify(Source::from(vol), &opts, &NoProgress).unwrap();
     assert!(!done.outcome.removed.is_empty());
     let farthest = |r: &isotopo::simplify::Removed, scale: [f64; 3]| {
@@ -369,14 +374,7 @@ fn writing_reports_the_samples_at_the_isovalue_and_the_largest_move() {
         let i = (k * 7919) % (nx * ny * nz);
         vol.set(i % nx, (i / nx) % ny, i / (nx * ny), iso);
     }
-    let opts = SimplifyOptions {
-        surface: SurfaceOptions {
-            iso,
-            ..SurfaceOptions::default()
-        },
-        tau: f64::INFINITY,
-        ..SimplifyOptions::default()
-    };
+    let opts = every_handle(iso);
     let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress).unwrap();
     let out = done.edited().unwrap();
     let written = done.written.expect("edited() records what it wrote");

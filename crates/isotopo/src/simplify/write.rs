@@ -222,16 +222,6 @@ mod tests {
     /// within the first margin (2^-10 of the isovalue, at least 2^-10).
     #[test]
     fn wall_values_are_the_nearest_on_each_side() {
-        let types = [
-            DType::U8,
-            DType::I8,
-            DType::U16,
-            DType::I16,
-            DType::U32,
-            DType::I32,
-            DType::F32,
-            DType::F64,
-        ];
         let scalings = [
             Scaling::IDENTITY,
             Scaling {
@@ -240,7 +230,7 @@ mod tests {
             },
         ];
         let mut checked = 0;
-        for dtype in types {
+        for dtype in DType::ALL {
             for scaling in scalings {
                 for iso in [0.5, 0.0, 1.0, 127.5, -3.0, 0.1, 1000.25, -1023.0] {
                     for inside in [Inside::Above, Inside::Below] {
