@@ -211,10 +211,21 @@ class Report:
     #: The isovalue to give another mesher (skimage.measure.marching_cubes, VTK) for the
     #: surface isotopo simplified (differs from iso only for integer samples at the isovalue).
     mesh_iso: float
+    #: Components (b0) and cavities (b2) of the solid before and after.
+    components_before: int
+    components_after: int
+    cavities_before: int
+    cavities_after: int
+    #: The components and cavities removed: counts per operation ("components_deleted",
+    #: "components_bridged", "cavities_filled", "cavities_opened"), the samples they changed,
+    #: and each one ("removed": its kind, operation, size, box, bridge or tunnel samples).
+    parts: Dict[str, Any] = field(repr=False)
     _json: Dict[str, Any] = field(repr=False, compare=False)
 
     def __repr__(self) -> str:
         return (f"Report(genus_before={self.genus_before}, genus_after={self.genus_after}, "
+                f"components {self.components_before} -> {self.components_after}, "
+                f"cavities {self.cavities_before} -> {self.cavities_after}, "
                 f"samples_changed={self.samples_changed}, mesh_iso={self.mesh_iso})")
 
     def to_dict(self) -> Dict[str, Any]:
@@ -511,8 +522,13 @@ def _check_tau(tau: Any, allow_zero: bool) -> float:
 def simplify(
     volume: Any,
     iso: float,
-    tau: float,
+    tau: Optional[float] = None,
     *,
+    min_component: Optional[int] = None,
+    largest: bool = False,
+    min_cavity: Optional[int] = None,
+    fill_cavities: bool = False,
+    spherical: bool = False,
     inside: str = "above",
     connectivity: int = 6,
     fill_only: bool = False,
@@ -538,9 +554,22 @@ def simplify(
       (skimage.measure.marching_cubes, VTK, either connectivity) sees the same surface; give
       them ``report.mesh_iso``.
     - ``max_slices``: planes held in memory at once (the rest in a scratch file).
+    - ``min_component``: components with fewer inside samples go, each deleted or bridged to
+      a component that stays, whichever changes fewer samples; ``largest``: keep only the
+      largest component.
+    - ``min_cavity``: cavities with fewer samples go, each filled or opened to the outside
+      through its thinnest wall, whichever changes fewer samples; ``fill_cavities``: every one.
+    - ``spherical``: one component, no cavity, no handle (``largest``, ``fill_cavities``,
+      ``tau=math.inf``); ``tau`` may then be left out.
 
-    Components and cavities never change; the result is checked before it is returned.
+    Components and cavities change only as asked; the result is checked before it is returned.
     """
+    if spherical:
+        if tau is not None and tau != math.inf:
+            raise ValueError(f"spherical removes every handle: leave tau out (got {tau!r})")
+        tau, largest, fill_cavities = math.inf, True, True
+    if tau is None:
+        raise ValueError("give tau (math.inf removes every handle), or spherical=True")
     iso = _check_iso(iso)
     opts = _surface_opts(iso, inside, connectivity)
     if max_ratio is not None:
@@ -557,6 +586,10 @@ def simplify(
         metric=_check_choice("metric", metric, ("edges", "mm")),
         well_composed=bool(well_composed),
         max_slices=_check_max_slices(max_slices),
+        min_component=_check_count("min_component", min_component),
+        largest=bool(largest),
+        min_cavity=_check_count("min_cavity", min_cavity),
+        fill_cavities=bool(fill_cavities),
     )
     if fill_only and cut_only:
         raise ValueError("fill_only and cut_only exclude each other: one, or neither (both)")
@@ -572,9 +605,23 @@ def simplify(
         kept=d["kept"],
         samples_changed=d["samples_changed"],
         mesh_iso=d["mesh_iso"],
+        components_before=d["b0_before"],
+        components_after=d["b0_after"],
+        cavities_before=d["b2_before"],
+        cavities_after=d["b2_after"],
+        parts=d["parts"],
         _json=d,
     )
     return prep.restore(out), report
+
+
+def _check_count(name: str, value: Optional[int]) -> Optional[int]:
+    """A sample count: None, or an integer at least 1."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a whole number of samples, at least 1, got {value!r}")
+    return int(value)
 
 
 # --------------------------------------------------------------------------------------------

@@ -184,6 +184,42 @@ def test_simplify_tau_inf_on_random_volumes(mode, conn):
             assert betti(out > iso, other) == after
 
 
+@pytest.mark.parametrize("conn", [6, 26])
+def test_spherical_and_min_component_by_skimage(conn):
+    """spherical gives one component, no handle and no cavity; min_component and min_cavity
+    leave none smaller, by scikit-image's labels (sizes too)."""
+    from skimage.measure import label
+
+    rng = np.random.default_rng(RNG_SEED + 11 + conn)
+    fg, bg = (1, 3) if conn == 6 else (3, 1)
+    for case in range(6):
+        v = noise(rng, (16, 18, 14), smooth=3).astype(np.float32)
+        iso = float(np.quantile(v, rng.uniform(0.35, 0.65)))
+        b0, _, b2 = betti(v > iso, conn)
+        out, rep = isotopo.simplify(v, iso, spherical=True, connectivity=conn)
+        assert betti(out > iso, conn) == (min(b0, 1), 0, 0), case
+        assert (rep.components_before, rep.cavities_before) == (b0, b2)
+        assert (rep.components_after, rep.cavities_after, rep.genus_after) == (min(b0, 1), 0, 0)
+        assert rep.parts["components_deleted"] + rep.parts["components_bridged"] == b0 - min(b0, 1)
+        assert rep.parts["cavities_filled"] + rep.parts["cavities_opened"] == b2
+        out, rep = isotopo.simplify(v, iso, 10, min_component=30, min_cavity=30, connectivity=conn)
+        labels = label(np.pad(out > iso, 1), connectivity=fg)
+        assert labels.max() == 0 or np.bincount(labels.ravel())[1:].min() >= 30, case
+        spaces = label(np.pad(out <= iso, 1), connectivity=bg)
+        sizes = np.bincount(spaces.ravel())
+        sizes[spaces[0, 0, 0]] = 0  # the exterior
+        assert all(n == 0 or n >= 30 for n in sizes[1:]), case
+
+
+def test_spherical_refuses_a_finite_tau():
+    with pytest.raises(ValueError, match="spherical"):
+        isotopo.simplify(np.zeros((4, 4, 4)), 0.5, 3, spherical=True)
+    with pytest.raises(ValueError, match="min_component"):
+        isotopo.simplify(np.zeros((4, 4, 4)), 0.5, 3, min_component=0)
+    with pytest.raises(ValueError, match="give tau"):
+        isotopo.simplify(np.zeros((4, 4, 4)), 0.5)
+
+
 def test_simplify_inside_below():
     sdf = -two_tori()  # a signed distance field: negative inside
     assert betti(sdf < 0) == (1, 2, 0)

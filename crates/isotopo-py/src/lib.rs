@@ -256,6 +256,10 @@ fn simplify(
         max_ratio: opt(opts, "max_ratio")?,
         max_slices: opt(opts, "max_slices")?,
         well_composed: opt(opts, "well_composed")?,
+        min_component: opt(opts, "min_component")?,
+        largest: opt(opts, "largest")?,
+        min_cavity: opt(opts, "min_cavity")?,
+        fill_cavities: opt(opts, "fill_cavities")?,
     };
     let target = ArrayView::of(out)?;
     run_job(py, volume, opts, progress, |source, p| {

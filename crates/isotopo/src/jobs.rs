@@ -347,8 +347,8 @@ impl Analysis {
 pub struct Simplified {
     /// The input's header (grid, sample type, affine, file).
     pub info: VolumeInfo,
-    /// Topology of the solid before (b0 and b2 stay the same, by construction and by a check
-    /// of the whole volume).
+    /// Topology of the solid before (b0 and b2 stay the same unless components or cavities
+    /// were asked to go, by construction and by a check of the whole volume).
     pub before: GenusReport,
     /// Topology of the solid after: `b1` is the number of handles kept.
     pub after: GenusReport,
@@ -382,9 +382,11 @@ impl std::fmt::Debug for Simplified {
     }
 }
 
-/// Removes every handle of the isosurface smaller than `opts.tau` (see [`crate::simplify`](mod@crate::simplify) for
-/// how). The whole result is checked before it is returned: components and cavities unchanged,
-/// genus after equal to the handles kept; otherwise an internal error, and nothing to write.
+/// Removes every handle of the isosurface smaller than `opts.tau`, and the components and
+/// cavities the options ask to remove (see [`crate::simplify`](mod@crate::simplify) for how).
+/// The whole result is checked before it is returned: components and cavities as the options
+/// asked (unchanged by default), genus after equal to the handles kept; otherwise an internal
+/// error, and nothing to write.
 pub fn simplify(
     source: Source,
     opts: &SimplifyOptions,
@@ -415,10 +417,13 @@ pub fn simplify(
     let outcome = crate::simplify::simplify(&mut masks, opts, &info.affine, progress)?;
     let seconds_simplify = t.elapsed().as_secs_f64();
     let after = masks.genus(surface.connectivity)?;
-    if after.b0 != before.b0 || after.b2 != before.b2 {
+    // Only the components-and-cavities phase may change b0 and b2; the handles' removal keeps
+    // what it left.
+    let (b0, b2) = outcome.parts.after.unwrap_or((before.b0, before.b2));
+    if after.b0 != b0 || after.b2 != b2 {
         return Err(Error::Internal(format!(
-            "simplification changed the solid's components or cavities (b0 {} -> {}, b2 {} -> {}); nothing written",
-            before.b0, after.b0, before.b2, after.b2
+            "removing handles changed the solid's components or cavities (b0 {b0} -> {}, b2 {b2} -> {}); nothing written",
+            after.b0, after.b2
         )));
     }
     if after.b1 as usize != outcome.kept.len() {
@@ -562,6 +567,10 @@ impl Simplified {
             "metric": opts.metric,
             "mode": opts.mode,
             "max_ratio": opts.max_ratio,
+            "min_component": opts.min_component,
+            "largest": opts.largest,
+            "min_cavity": opts.min_cavity,
+            "fill_cavities": opts.fill_cavities,
             "wall_values": self.wall_values,
             "well_composed": self.outcome.composition.as_ref().map(|c| serde_json::json!({
                 "critical_before": c.before,

@@ -298,5 +298,42 @@ pub fn simplify_json(
         "seconds_stages": outcome.seconds,
         "removed": removed,
         "kept": outcome.kept,
+        "parts": parts_json(&outcome.parts, info),
+    })
+}
+
+/// The components and cavities removed (and those the mode kept), with counts per operation.
+fn parts_json(parts: &crate::simplify::Parts, info: &VolumeInfo) -> serde_json::Value {
+    use crate::simplify::{PartKind, PartOperation};
+    let with_mm = |v: serde_json::Value, bbox: &crate::volume::BBox| {
+        let mut v = v;
+        v["bbox_mm"] = serde_json::json!(bbox.to_mm(&info.affine));
+        v
+    };
+    let removed: Vec<serde_json::Value> = parts
+        .removed
+        .iter()
+        .map(|r| with_mm(serde_json::to_value(r).unwrap_or_default(), &r.bbox))
+        .collect();
+    let kept: Vec<serde_json::Value> = parts
+        .kept
+        .iter()
+        .map(|k| with_mm(serde_json::to_value(k).unwrap_or_default(), &k.bbox))
+        .collect();
+    let changed = |kind: PartKind| -> usize {
+        let of_kind = parts.removed.iter().filter(|r| r.part == kind);
+        of_kind.map(|r| r.samples_changed).sum()
+    };
+    serde_json::json!({
+        "components_deleted": parts.count(PartOperation::Delete),
+        "components_bridged": parts.count(PartOperation::Bridge),
+        "cavities_filled": parts.count(PartOperation::Fill),
+        "cavities_opened": parts.count(PartOperation::Open),
+        "samples_changed_components": changed(PartKind::Component),
+        "samples_changed_cavities": changed(PartKind::Cavity),
+        "refused": parts.refused,
+        "b0_b2_after": parts.after,
+        "removed": removed,
+        "kept": kept,
     })
 }

@@ -20,7 +20,11 @@ pub(crate) struct SimplifyArgs {
     sweep: SweepArgs,
     /// Remove handles whose size (the shorter of the Reeb and cross loops, in voxel edges) is
     /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
-    #[arg(long, required_unless_present = "tau_mm", conflicts_with = "tau_mm")]
+    #[arg(
+        long,
+        required_unless_present_any = ["tau_mm", "spherical"],
+        conflicts_with = "tau_mm"
+    )]
     tau: Option<f64>,
     /// Like --tau, in millimetres along the interpolated surface (the file's spacing): for
     /// anisotropic scans, where an edge along one axis is longer than along another.
@@ -47,6 +51,23 @@ pub(crate) struct SimplifyArgs {
     /// Keep long skinny handles: those whose longer loop is more than R times the shorter.
     #[arg(long, value_name = "R")]
     max_ratio: Option<f64>,
+    /// Remove the solid's components with fewer than N inside samples: each deleted, or bridged
+    /// to a component that stays where the bridge flips fewer samples.
+    #[arg(long, value_name = "N")]
+    min_component: Option<u64>,
+    /// Keep one component, the largest (the others deleted or bridged, as --min-component).
+    #[arg(long)]
+    largest: bool,
+    /// Remove the cavities with fewer than N samples: each filled, or opened to the outside
+    /// through its thinnest wall where that flips fewer samples.
+    #[arg(long, value_name = "N")]
+    min_cavity: Option<u64>,
+    /// Remove every cavity (filled or opened, as --min-cavity).
+    #[arg(long)]
+    fill_cavities: bool,
+    /// One component, no handle, no cavity: --largest --fill-cavities --tau inf.
+    #[arg(long, conflicts_with_all = ["tau", "tau_mm"])]
+    spherical: bool,
     /// Write a JSON report (genus before/after, every removed and kept handle).
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
@@ -61,6 +82,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     use isotopo::simplify::{Mode, SimplifyOptions};
     let surface = a.surface.options()?;
     let (tau, metric, flag) = match (a.tau, a.tau_mm) {
+        _ if a.spherical => (f64::INFINITY, isotopo::loops::Metric::Edges, "--tau"),
         (Some(t), _) => (t, isotopo::loops::Metric::Edges, "--tau"),
         (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
         (None, None) => return Err(Error::usage("give --tau or --tau-mm")),
@@ -90,6 +112,10 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         max_ratio: a.max_ratio,
         max_slices: a.sweep.max_slices,
         well_composed: !a.no_well_composed,
+        min_component: a.min_component,
+        largest: a.largest || a.spherical,
+        min_cavity: a.min_cavity,
+        fill_cavities: a.fill_cavities || a.spherical,
     };
     // Every output is checked before the work starts.
     let reader = a.input.open()?;
@@ -196,6 +222,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         pinch,
         outcome.intra_ribbon
     );
+    print_parts(&outcome.parts);
     if !outcome.kept.is_empty() {
         use isotopo::simplify::KeepReason;
         let reasons = [
@@ -260,6 +287,41 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         secs, t_read, t_simplify, t_write
     );
     Ok(())
+}
+
+/// The components and cavities removed, when asked.
+fn print_parts(parts: &isotopo::simplify::Parts) {
+    use isotopo::simplify::{PartKind, PartOperation as Op};
+    if parts.after.is_none() {
+        return;
+    }
+    let changed = |kind: PartKind| -> usize {
+        let of_kind = parts.removed.iter().filter(|r| r.part == kind);
+        of_kind.map(|r| r.samples_changed).sum()
+    };
+    let kept = |kind: PartKind| parts.kept.iter().filter(|k| k.part == kind).count();
+    println!(
+        "components  {} removed: {} deleted, {} bridged ({} samples){}",
+        parts.count(Op::Delete) + parts.count(Op::Bridge),
+        parts.count(Op::Delete),
+        parts.count(Op::Bridge),
+        group(changed(PartKind::Component) as u64),
+        match kept(PartKind::Component) {
+            0 => String::new(),
+            n => format!("; {n} kept: no bridge under --fill-only"),
+        }
+    );
+    println!(
+        "cavities    {} removed: {} filled, {} opened ({} samples){}",
+        parts.count(Op::Fill) + parts.count(Op::Open),
+        parts.count(Op::Fill),
+        parts.count(Op::Open),
+        group(changed(PartKind::Cavity) as u64),
+        match kept(PartKind::Cavity) {
+            0 => String::new(),
+            n => format!("; {n} kept: no opening under --cut-only"),
+        }
+    );
 }
 
 /// The well-composed step's line, and what another mesher needs to see the same surface.

@@ -24,6 +24,7 @@
 
 mod peel;
 
+pub(crate) use peel::flip_simple;
 pub use peel::{peel_walls, PeelTarget};
 
 use crate::grid::MaskVolume;

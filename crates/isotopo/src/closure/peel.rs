@@ -291,7 +291,7 @@ fn put_back(
 /// at the time, until none is; returns those set. A sample's simplicity changes only when a
 /// neighbour flips, so after the first pass only the neighbours of flipped samples are looked
 /// at again.
-fn flip_simple(
+pub(crate) fn flip_simple(
     vol: &mut MaskVolume,
     conn: Connectivity,
     cand: &[[i64; 3]],

@@ -34,6 +34,7 @@ use std::borrow::Cow;
 
 mod certify;
 mod measure;
+mod parts;
 mod plan;
 mod removal;
 mod walls;
@@ -41,6 +42,7 @@ mod write;
 
 use certify::{certificate_holds, certify, Certificate};
 use measure::{memo_key, Caches, Lasting};
+pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
 use plan::{loop_box, overlaps, plan};
 use removal::{removal, Closure};
 use walls::{close_handle, Refused};
@@ -103,6 +105,17 @@ pub struct SimplifyOptions {
     /// the isovalue are left (they may be a label); the report gives the isovalue between
     /// stored values that meshes the same surface without them.
     pub well_composed: bool,
+    /// Solid components with fewer inside samples than this go: each deleted, or bridged to a
+    /// component that stays where the bridge flips fewer samples; by default none.
+    pub min_component: Option<u64>,
+    /// Keep only the largest component (the others deleted or bridged likewise); by default no.
+    pub largest: bool,
+    /// Cavities with fewer samples than this go: each filled, or opened to the outside (or to a
+    /// cavity that stays) through its thinnest wall where that flips fewer samples; by default
+    /// none.
+    pub min_cavity: Option<u64>,
+    /// Every cavity goes (as with `min_cavity`); by default no.
+    pub fill_cavities: bool,
 }
 
 impl Default for SimplifyOptions {
@@ -116,6 +129,10 @@ impl Default for SimplifyOptions {
             max_ratio: None,
             max_slices: None,
             well_composed: true,
+            min_component: None,
+            largest: false,
+            min_cavity: None,
+            fill_cavities: false,
         }
     }
 }
@@ -136,6 +153,15 @@ impl SimplifyOptions {
             return Err(Error::usage("the isovalue must be a finite number"));
         }
         Ok(())
+    }
+
+    /// One component, no handle, no cavity: keep the largest component, remove every cavity
+    /// and every handle (`--spherical`).
+    pub fn spherical(mut self) -> SimplifyOptions {
+        self.largest = true;
+        self.fill_cavities = true;
+        self.tau = f64::INFINITY;
+        self
     }
 
     /// The searches' limits: longer loops cannot change a decision.
@@ -282,6 +308,8 @@ pub struct Outcome {
     pub refused_by: std::collections::BTreeMap<&'static str, usize>,
     /// Seconds spent stepping the sweep, measuring loops and closing them.
     pub seconds: StageSeconds,
+    /// The components and cavities removed (before the handles), and those the mode kept.
+    pub parts: Parts,
 }
 
 impl Outcome {
@@ -309,6 +337,8 @@ impl Outcome {
 /// Where the time went.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageSeconds {
+    /// Removing components and cavities.
+    pub parts: f64,
     /// Stepping the sweep.
     pub sweep: f64,
     /// Measuring loops.
@@ -343,8 +373,15 @@ pub fn simplify(
     progress: &dyn Progress,
 ) -> Result<Outcome> {
     let mut run = Run::new(opts, affine, progress);
+    if parts::wanted(opts) {
+        let t = std::time::Instant::now();
+        run.parts = parts::remove_parts(vol, opts, &mut run.original, progress)?;
+        run.seconds.parts = t.elapsed().as_secs_f64();
+    }
     while run.passes < MAX_PASSES {
+        let from = run.removed.len();
         let closed = run.sweep_pass(vol)?;
+        run.trim_walls(vol, from);
         // Well-composed after every pass that changed something, so that the last pass (the
         // one that closes nothing) analyses and certifies the volume as it is written.
         let flipped = if opts.well_composed {
@@ -380,6 +417,8 @@ struct Run<'a> {
     /// Passes started so far.
     passes: usize,
     removed: Vec<Removed>,
+    /// The samples each wall of `removed` flipped, in local coordinates.
+    wall_samples: Vec<Vec<[i64; 3]>>,
     /// What the current pass keeps, with the slice it was found at.
     kept: Vec<(i64, Kept)>,
     /// The certificate's curves of the current pass, with the slice they were found at.
@@ -394,6 +433,7 @@ struct Run<'a> {
     refused: Refused,
     intra_ribbon: usize,
     seconds: StageSeconds,
+    parts: Parts,
 }
 
 impl<'a> Run<'a> {
@@ -408,6 +448,7 @@ impl<'a> Run<'a> {
             certified: None,
             passes: 0,
             removed: Vec::new(),
+            wall_samples: Vec::new(),
             kept: Vec::new(),
             basis: Vec::new(),
             original: FastMap::default(),
@@ -417,6 +458,7 @@ impl<'a> Run<'a> {
             refused: Refused::default(),
             intra_ribbon: 0,
             seconds: StageSeconds::default(),
+            parts: Parts::default(),
         }
     }
 
@@ -607,6 +649,7 @@ impl<'a> Run<'a> {
         let at_pass = (self.passes, s);
         self.removed
             .push(removal(vol, h, &l, closure, affine, at_pass));
+        self.wall_samples.push(applied.changed);
         Some(wall)
     }
 
@@ -639,6 +682,49 @@ impl<'a> Run<'a> {
         };
         self.kept.push((s, at.kept(reason)));
         None
+    }
+
+    /// Walls are often thicker than their handles need (a fan wall fills its whole disc): flips
+    /// back every sample of the walls from `removed[from]` on whose flip back is simple (changes
+    /// no topology of either side), pass after pass, so that only the samples holding the
+    /// handles closed stay changed. After the pass rather than wall by wall: the sweep would
+    /// meet each thinned wall as new surface and measure the handles round it again.
+    fn trim_walls(&mut self, vol: &mut MaskVolume, from: usize) {
+        let mut back: FastMap<[i64; 3], ()> = FastMap::default();
+        for target in [true, false] {
+            let walls = self.removed[from..].iter().zip(&self.wall_samples[from..]);
+            let cand: Vec<[i64; 3]> = walls
+                .filter(|(r, _)| r.operation.target() == target)
+                .flat_map(|(_, w)| w.iter().copied())
+                // Only samples whose flip back restores the input (not one a later wall of the
+                // other kind flipped back already).
+                .filter(|q| vol.get(q[0], q[1], q[2]) == target)
+                .filter(|q| self.original.get(q) == Some(&!target))
+                .collect();
+            let flipped = crate::closure::flip_simple(vol, self.conn, &cand, !target);
+            back.extend(flipped.into_iter().map(|q| (q, ())));
+        }
+        if back.is_empty() {
+            return;
+        }
+        let near: Vec<BBox> = back
+            .keys()
+            .map(|&q| BBox {
+                min: q.map(|x| x - 1),
+                max: q.map(|x| x + 1),
+            })
+            .collect();
+        self.lasting.forget_near(&near);
+        for (r, w) in self.removed[from..]
+            .iter_mut()
+            .zip(&mut self.wall_samples[from..])
+        {
+            w.retain(|q| !back.contains_key(q));
+            r.samples = w.iter().map(|&q| vol.frame.to_original_i(q)).collect();
+            r.samples_changed = r.samples.len();
+            (r.max_distance, r.max_distance_mm) =
+                removal::max_distance(&r.samples, &r.points, self.affine);
+        }
     }
 
     /// After walls were written at slice `s`: sweep again from the lowest slice they touched.
@@ -728,6 +814,7 @@ impl<'a> Run<'a> {
             refused: self.refused.total,
             refused_by: self.refused.by,
             seconds: self.seconds,
+            parts: self.parts,
         }
     }
 }

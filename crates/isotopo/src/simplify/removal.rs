@@ -9,7 +9,11 @@ use crate::sweep::LocatedHandle;
 use crate::volume::Affine;
 
 /// Farthest of `samples` (original coordinates) from the polyline's points: voxels and mm.
-fn max_distance(samples: &[[i64; 3]], points: &[[f64; 3]], affine: &Affine) -> (f64, f64) {
+pub(super) fn max_distance(
+    samples: &[[i64; 3]],
+    points: &[[f64; 3]],
+    affine: &Affine,
+) -> (f64, f64) {
     let mut worst = (0.0f64, 0.0f64);
     for q in samples {
         let q = [q[0] as f64, q[1] as f64, q[2] as f64];

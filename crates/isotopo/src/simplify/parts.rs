@@ -1,0 +1,757 @@
+//! Components and cavities: the solid's small components go (deleted, or bridged to a component
+//! that stays by a path of outside samples set inside, where that path is shorter than the
+//! component is large), and its small cavities go (filled, or opened to the outside or to a
+//! cavity that stays by a tunnel of inside samples set outside, where that is cheaper).
+//!
+//! ```text
+//!   a speck beside a big component      a big cavity behind a thin wall
+//!
+//!     ##  .  ######                      ##########          ##########
+//!     ##  .  ######    bridge: 1 sample  #........#   open:  #.........   1 sample cut
+//!         ^  ######    (deleting: 4)     #........#          #........#   (filling: 24)
+//!     the path                           ##########          ##########
+//! ```
+//!
+//! A bridge or a tunnel is verified before it is kept: the samples on the unchanged side next to
+//! it stay connected (nothing splits), the far end touches one part that stays, and the Euler
+//! characteristic of the solid drops by exactly one, so exactly one component or cavity went and
+//! no handle came or went. Deleting a whole component or filling a whole cavity is exact by
+//! construction (with the component go its handles and the cavities it alone enclosed; with the
+//! cavity, the handles of its walls, and components floating in it join the one around it). The
+//! job checks the result on the whole volume.
+//!
+//! Components are labelled by flood fill over the whole mask: this phase holds every plane in
+//! memory, one more bit per sample for the labels, and the samples of the parts that go.
+
+use crate::error::{Error, Result};
+use crate::grid::simple::{neighbourhood, FACES};
+use crate::grid::MaskVolume;
+use crate::progress::Progress;
+use crate::surface::search::FastMap;
+use crate::topology::cases::{cases, Connectivity};
+use crate::unionfind::UnionFind;
+use crate::volume::BBox;
+
+use super::{Mode, SimplifyOptions};
+
+/// A solid component or a cavity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PartKind {
+    /// A connected piece of the solid.
+    Component,
+    /// A connected piece of the outside that does not reach the volume's border.
+    Cavity,
+}
+
+/// How a part went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PartOperation {
+    /// A component set outside, every sample.
+    Delete,
+    /// A component joined to one that stays by a path of outside samples set inside.
+    Bridge,
+    /// A cavity set inside, every sample.
+    Fill,
+    /// A cavity joined to the outside or to a cavity that stays by a tunnel of inside samples
+    /// set outside.
+    Open,
+}
+
+/// A component or cavity removed.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PartRemoved {
+    /// Component or cavity.
+    pub part: PartKind,
+    /// How it went.
+    pub operation: PartOperation,
+    /// Its samples (inside samples of a component, outside samples of a cavity).
+    pub size: usize,
+    /// Samples this operation flipped.
+    pub samples_changed: usize,
+    /// The box of the part (original voxel coordinates).
+    pub bbox: BBox,
+    /// For a bridge or a tunnel, its samples (original coordinates); for a deletion or a fill,
+    /// empty (they are the part's samples, all listed in the edits).
+    pub path: Vec<[i64; 3]>,
+}
+
+/// A component or cavity the options asked to remove but the mode could not (`--fill-only`
+/// with no bridge to a component that stays, `--cut-only` with no tunnel).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PartKept {
+    /// Component or cavity.
+    pub part: PartKind,
+    /// Its samples.
+    pub size: usize,
+    /// Its box (original voxel coordinates).
+    pub bbox: BBox,
+}
+
+/// What the phase did.
+#[derive(Clone, Debug, Default)]
+pub struct Parts {
+    /// Components and cavities removed, in order.
+    pub removed: Vec<PartRemoved>,
+    /// Those asked for that stayed.
+    pub kept: Vec<PartKept>,
+    /// Bridges and tunnels found but refused by the local check (the part was then deleted or
+    /// filled instead).
+    pub refused: usize,
+    /// Components and cavities (b0, b2) after this phase (what the handles' removal then keeps);
+    /// `None` when the phase did not run.
+    pub after: Option<(u64, u64)>,
+}
+
+impl Parts {
+    /// Components (or cavities) removed by `op`.
+    pub fn count(&self, op: PartOperation) -> usize {
+        self.removed.iter().filter(|r| r.operation == op).count()
+    }
+}
+
+/// Whether the options ask for anything of this phase.
+pub(super) fn wanted(opts: &SimplifyOptions) -> bool {
+    opts.min_component.is_some() || opts.largest || opts.min_cavity.is_some() || opts.fill_cavities
+}
+
+/// Removes the components and cavities the options ask for; every flipped sample's original
+/// side goes into `original` (local coordinates).
+pub(super) fn remove_parts(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    original: &mut FastMap<[i64; 3], bool>,
+    progress: &dyn Progress,
+) -> Result<Parts> {
+    let mut out = Parts::default();
+    let conn = opts.surface.connectivity;
+    if opts.min_component.is_some() || opts.largest {
+        progress.start("components", 1);
+        let (comps, labels) = label(vol, Side::solid(conn));
+        let go = components_to_remove(&comps, opts);
+        let owner = Owner::new(labels, &go, comps.len());
+        remove(vol, Side::solid(conn), owner, opts, original, &mut out)?;
+        progress.finish();
+    }
+    if opts.min_cavity.is_some() || opts.fill_cavities {
+        progress.start("cavities", 1);
+        let (spaces, labels) = label(vol, Side::space(conn));
+        let go = cavities_to_remove(&spaces, opts);
+        let owner = Owner::new(labels, &go, spaces.len());
+        remove(vol, Side::space(conn), owner, opts, original, &mut out)?;
+        progress.finish();
+    }
+    check_parts(vol, opts, &out)?;
+    let g = vol.genus(conn)?;
+    out.after = Some((g.b0, g.b2));
+    vol.keep_window(-1, -1)?;
+    Ok(out)
+}
+
+/// The components to remove, smallest first: under `min_component` samples, and with `largest`
+/// every one but the largest (the first of equals in scan order).
+fn components_to_remove(comps: &[Part], opts: &SimplifyOptions) -> Vec<usize> {
+    let min = opts.min_component.unwrap_or(0) as usize;
+    let largest = (0..comps.len()).max_by_key(|&i| (comps[i].size, std::cmp::Reverse(i)));
+    let mut go: Vec<usize> = (0..comps.len())
+        .filter(|&i| comps[i].size < min || (opts.largest && Some(i) != largest))
+        .collect();
+    go.sort_by_key(|&i| (comps[i].size, i));
+    go
+}
+
+/// The cavities to remove, smallest first: under `min_cavity` samples, or every one.
+fn cavities_to_remove(spaces: &[Part], opts: &SimplifyOptions) -> Vec<usize> {
+    let min = match (opts.fill_cavities, opts.min_cavity) {
+        (true, _) => usize::MAX,
+        (false, m) => m.unwrap_or(0) as usize,
+    };
+    let mut go: Vec<usize> = (0..spaces.len())
+        .filter(|&i| !spaces[i].exterior && spaces[i].size < min)
+        .collect();
+    go.sort_by_key(|&i| (spaces[i].size, i));
+    go
+}
+
+/// One side of the isosurface with its adjacency: the solid (6-adjacent under connectivity 6)
+/// or the space round it (26-adjacent then; the reverse under 26).
+#[derive(Clone, Copy)]
+struct Side {
+    inside: bool,
+    six: bool,
+    conn: Connectivity,
+}
+
+impl Side {
+    fn solid(conn: Connectivity) -> Side {
+        Side {
+            inside: true,
+            six: conn == Connectivity::Six,
+            conn,
+        }
+    }
+
+    fn space(conn: Connectivity) -> Side {
+        Side {
+            inside: false,
+            six: conn != Connectivity::Six,
+            conn,
+        }
+    }
+
+    fn other(self) -> Side {
+        Side {
+            inside: !self.inside,
+            six: !self.six,
+            conn: self.conn,
+        }
+    }
+
+    fn offsets(self) -> &'static [[i64; 3]] {
+        if self.six {
+            &FACES
+        } else {
+            &neighbourhood().offsets
+        }
+    }
+
+    fn kind(self) -> PartKind {
+        if self.inside {
+            PartKind::Component
+        } else {
+            PartKind::Cavity
+        }
+    }
+}
+
+fn add(q: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [q[0] + d[0], q[1] + d[1], q[2] + d[2]]
+}
+
+fn in_volume(vol: &MaskVolume, q: [i64; 3]) -> bool {
+    (0..3).all(|a| q[a] >= 0 && q[a] < vol.dims[a] as i64)
+}
+
+/// A connected set of samples of one side.
+#[derive(Clone, Copy)]
+struct Part {
+    /// Samples in the volume (the padding round it not counted).
+    size: usize,
+    /// Its first sample in scan order.
+    seed: [i64; 3],
+    /// Does it reach the padding (the outside round the volume)?
+    exterior: bool,
+}
+
+/// No part: a sample of the other side.
+const NONE: u32 = u32::MAX;
+
+/// The part of every sample of one side, over the volume and for the outside its one-sample
+/// padding too (x fastest).
+struct Labels {
+    lo: i64,
+    dims: [i64; 3],
+    ids: Vec<u32>,
+}
+
+impl Labels {
+    fn index(&self, q: [i64; 3]) -> Option<usize> {
+        let p = q.map(|x| x - self.lo);
+        let d = self.dims;
+        if (0..3).any(|a| p[a] < 0 || p[a] >= d[a]) {
+            return None;
+        }
+        Some(((p[2] * d[1] + p[1]) * d[0] + p[0]) as usize)
+    }
+
+    /// The part of `q`, or [`NONE`] (the other side, or beyond the padding).
+    fn get(&self, q: [i64; 3]) -> u32 {
+        self.index(q).map_or(NONE, |i| self.ids[i])
+    }
+}
+
+/// Every connected part of `side` (the padding included for the outside: the part holding it
+/// is the exterior) in scan order of their first sample, and each sample's part. One pass in
+/// scan order joins each sample to its neighbours already seen (a union-find of provisional
+/// labels), a second gives each sample its part.
+fn label(vol: &MaskVolume, side: Side) -> (Vec<Part>, Labels) {
+    let lo = if side.inside { 0 } else { -1 };
+    let hi = vol.dims.map(|d| d as i64 - lo);
+    let dims = hi.map(|h| h - lo);
+    let mut labels = Labels {
+        lo,
+        dims,
+        ids: vec![NONE; (dims[0] * dims[1] * dims[2]) as usize],
+    };
+    let seen_before = |d: &[i64; 3]| (d[2], d[1], d[0]) < (0, 0, 0);
+    let back: Vec<([i64; 3], usize)> = side
+        .offsets()
+        .iter()
+        .filter(|d| seen_before(d))
+        .map(|&d| (d, ((-d[2] * dims[1] - d[1]) * dims[0] - d[0]) as usize))
+        .collect();
+    let mut uf = UnionFind::new(0);
+    let mut i = 0;
+    for z in lo..hi[2] {
+        let plane = vol.plane_once(z);
+        for y in lo..hi[1] {
+            for x in lo..hi[0] {
+                if plane.get(x as isize, y as isize) == side.inside {
+                    let mut mine = NONE;
+                    for &(d, back) in &back {
+                        let n = [x + d[0], y + d[1], z + d[2]];
+                        if (0..3).any(|a| n[a] < lo || n[a] >= hi[a]) {
+                            continue;
+                        }
+                        let l = labels.ids[i - back];
+                        if l == NONE {
+                            continue;
+                        }
+                        if mine == NONE {
+                            mine = l;
+                        } else {
+                            uf.union(mine, l);
+                        }
+                    }
+                    labels.ids[i] = if mine == NONE { uf.push() } else { mine };
+                }
+                i += 1;
+            }
+        }
+    }
+    let (part_of, k) = uf.labels();
+    let mut parts = vec![
+        Part {
+            size: 0,
+            seed: [i64::MAX; 3],
+            exterior: false,
+        };
+        k
+    ];
+    let mut i = 0;
+    for z in lo..hi[2] {
+        for y in lo..hi[1] {
+            for x in lo..hi[0] {
+                let l = labels.ids[i];
+                if l != NONE {
+                    let p = part_of[l as usize];
+                    labels.ids[i] = p;
+                    let part = &mut parts[p as usize];
+                    if part.seed[0] == i64::MAX {
+                        part.seed = [x, y, z];
+                    }
+                    if in_volume(vol, [x, y, z]) {
+                        part.size += 1;
+                    } else {
+                        part.exterior = true;
+                    }
+                }
+                i += 1;
+            }
+        }
+    }
+    (parts, labels)
+}
+
+/// Which of the parts that go (numbered in their order) each sample of the side belongs to; the
+/// rest of the side stays. Samples flipped since the labelling are not looked up: they are on
+/// the other side now, or (a bridge, a tunnel) belong to what stays.
+struct Owner {
+    labels: Labels,
+    /// Part -> its number among those that go, or [`NONE`].
+    slot: Vec<u32>,
+    /// Number -> part.
+    go: Vec<usize>,
+}
+
+impl Owner {
+    fn new(labels: Labels, go: &[usize], parts: usize) -> Owner {
+        let mut slot = vec![NONE; parts];
+        for (k, &p) in go.iter().enumerate() {
+            slot[p] = k as u32;
+        }
+        Owner {
+            labels,
+            slot,
+            go: go.to_vec(),
+        }
+    }
+
+    fn of(&self, q: [i64; 3]) -> Option<u32> {
+        let l = self.labels.get(q);
+        (l != NONE && self.slot[l as usize] != NONE).then(|| self.slot[l as usize])
+    }
+
+    /// Part `k` stays from now on (it was joined to what stays).
+    fn stays(&mut self, k: u32) {
+        self.slot[self.go[k as usize]] = NONE;
+    }
+
+    /// The samples of each part that goes, in scan order.
+    fn members(&self) -> Vec<Vec<[i64; 3]>> {
+        let mut out = vec![Vec::new(); self.go.len()];
+        let d = self.labels.dims;
+        let mut i = 0;
+        for z in 0..d[2] {
+            for y in 0..d[1] {
+                for x in 0..d[0] {
+                    let l = self.labels.ids[i];
+                    if l != NONE && self.slot[l as usize] != NONE {
+                        let q = [x, y, z].map(|c| c + self.labels.lo);
+                        out[self.slot[l as usize] as usize].push(q);
+                    }
+                    i += 1;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Removes the parts `go` of `side` (indices into `parts`, in that order): each by whichever of
+/// its two operations flips fewer samples and the mode allows.
+fn remove(
+    vol: &mut MaskVolume,
+    side: Side,
+    mut owner: Owner,
+    opts: &SimplifyOptions,
+    original: &mut FastMap<[i64; 3], bool>,
+    out: &mut Parts,
+) -> Result<()> {
+    let members = owner.members();
+    // A component bridges by filling (adding material), a cavity opens by cutting.
+    let (join_allowed, whole_allowed) = match (opts.mode, side.inside) {
+        (Mode::Both, _) => (true, true),
+        (Mode::FillOnly, inside) => (inside, !inside),
+        (Mode::CutOnly, inside) => (!inside, inside),
+    };
+    for (k, m) in members.iter().enumerate() {
+        let size = m.len();
+        let budget = if whole_allowed { size - 1 } else { usize::MAX };
+        let join = if join_allowed && budget > 0 {
+            shortest_join(vol, side, m, &owner, k as u32, budget)
+        } else {
+            None
+        };
+        let bbox = original_box(vol, m);
+        let mut joined = None;
+        if let Some(path) = join {
+            // verify_join leaves the path flipped when it keeps it.
+            if verify_join(vol, side, &path, &owner, k as u32) {
+                joined = Some(path);
+            } else {
+                out.refused += 1;
+            }
+        }
+        let removed = match joined {
+            Some(path) => {
+                // Joined parts stay from now on: later ones may join them.
+                owner.stays(k as u32);
+                for &q in &path {
+                    original.entry(q).or_insert(!side.inside);
+                }
+                PartRemoved {
+                    part: side.kind(),
+                    operation: join_operation(side),
+                    size,
+                    samples_changed: path.len(),
+                    bbox,
+                    path: path.iter().map(|&q| vol.frame.to_original_i(q)).collect(),
+                }
+            }
+            None if whole_allowed => {
+                for &q in m {
+                    let [u, v, w] = q.map(|x| x as usize);
+                    vol.set(u, v, w, !side.inside);
+                    original.entry(q).or_insert(side.inside);
+                }
+                PartRemoved {
+                    part: side.kind(),
+                    operation: whole_operation(side),
+                    size,
+                    samples_changed: size,
+                    bbox,
+                    path: Vec::new(),
+                }
+            }
+            None => {
+                let part = side.kind();
+                out.kept.push(PartKept { part, size, bbox });
+                continue;
+            }
+        };
+        out.removed.push(removed);
+    }
+    Ok(())
+}
+
+fn join_operation(side: Side) -> PartOperation {
+    if side.inside {
+        PartOperation::Bridge
+    } else {
+        PartOperation::Open
+    }
+}
+
+fn whole_operation(side: Side) -> PartOperation {
+    if side.inside {
+        PartOperation::Delete
+    } else {
+        PartOperation::Fill
+    }
+}
+
+/// The box of local samples, in original coordinates.
+fn original_box(vol: &MaskVolume, samples: &[[i64; 3]]) -> BBox {
+    let mut b = BBox::EMPTY;
+    for &q in samples {
+        b.include(vol.frame.to_original_i(q));
+    }
+    b
+}
+
+/// What a sample of `side` next to a path is: of the part being joined, of another part that
+/// goes (the path may not touch it), or of what stays.
+#[derive(PartialEq)]
+enum Touch {
+    Mine,
+    Blocked,
+    Stays,
+}
+
+fn touch(owner: &Owner, me: u32, q: [i64; 3]) -> Touch {
+    match owner.of(q) {
+        Some(k) if k == me => Touch::Mine,
+        Some(_) => Touch::Blocked,
+        None => Touch::Stays,
+    }
+}
+
+/// The shortest path of samples of the other side (at most `budget` of them, in the volume,
+/// consecutive ones adjacent under `side`'s adjacency) from the part `me` (its samples `from`)
+/// to a sample of `side` that stays, touching no other part that goes; from the part to the far
+/// end.
+fn shortest_join(
+    vol: &MaskVolume,
+    side: Side,
+    from: &[[i64; 3]],
+    owner: &Owner,
+    me: u32,
+    budget: usize,
+) -> Option<Vec<[i64; 3]>> {
+    // Each path sample -> the one before it (itself for the first).
+    let mut parent: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
+    // A path sample's neighbours of `side`: does it touch what stays (an end), or another part
+    // that goes (unusable)?
+    let classify = |q: [i64; 3]| {
+        let mut stays = false;
+        for &d in side.offsets() {
+            let n = add(q, d);
+            if vol.get(n[0], n[1], n[2]) == side.inside {
+                match touch(owner, me, n) {
+                    Touch::Blocked => return None,
+                    Touch::Stays => stays = true,
+                    Touch::Mine => {}
+                }
+            }
+        }
+        Some(stays)
+    };
+    let mut layer = Vec::new();
+    for &q in from {
+        for &d in side.offsets() {
+            let n = add(q, d);
+            if in_volume(vol, n) && vol.get(n[0], n[1], n[2]) != side.inside {
+                if parent.contains_key(&n) {
+                    continue;
+                }
+                parent.insert(n, n);
+                match classify(n) {
+                    Some(true) => return Some(vec![n]),
+                    Some(false) => layer.push(n),
+                    None => {}
+                }
+            }
+        }
+    }
+    let mut length = 1;
+    while !layer.is_empty() && length < budget {
+        length += 1;
+        let mut next = Vec::new();
+        for &q in &layer {
+            for &d in side.offsets() {
+                let n = add(q, d);
+                if !in_volume(vol, n) || vol.get(n[0], n[1], n[2]) == side.inside {
+                    continue;
+                }
+                if parent.contains_key(&n) {
+                    continue;
+                }
+                parent.insert(n, q);
+                match classify(n) {
+                    Some(true) => return Some(path_to(&parent, n)),
+                    Some(false) => next.push(n),
+                    None => {}
+                }
+            }
+        }
+        layer = next;
+    }
+    None
+}
+
+/// The path ending at `end`, from its first sample.
+fn path_to(parent: &FastMap<[i64; 3], [i64; 3]>, end: [i64; 3]) -> Vec<[i64; 3]> {
+    let mut path = vec![end];
+    let mut q = end;
+    while parent[&q] != q {
+        q = parent[&q];
+        path.push(q);
+    }
+    path.reverse();
+    path
+}
+
+/// Margins round a path within which what must stay connected is looked for.
+const MARGINS: [i64; 2] = [2, 8];
+
+/// Flips `path` to `side` and keeps it if it joined the part to exactly one that stays and
+/// changed nothing else (see the module documentation); otherwise flips it back. Returns
+/// whether it was kept.
+fn verify_join(
+    vol: &mut MaskVolume,
+    side: Side,
+    path: &[[i64; 3]],
+    owner: &Owner,
+    me: u32,
+) -> bool {
+    let end = *path.last().expect("a path has samples");
+    // The far end's neighbours that stay: one part, connected without the path.
+    let ends: Vec<[i64; 3]> = side
+        .offsets()
+        .iter()
+        .map(|&d| add(end, d))
+        .filter(|n| {
+            vol.get(n[0], n[1], n[2]) == side.inside && touch(owner, me, *n) == Touch::Stays
+        })
+        .collect();
+    // The other side's samples next to the path: one part before, one after.
+    let space = side.other();
+    let mut beside: Vec<[i64; 3]> = Vec::new();
+    for &q in path {
+        for &d in space.offsets() {
+            let n = add(q, d);
+            if vol.get(n[0], n[1], n[2]) == space.inside && !path.contains(&n) {
+                beside.push(n);
+            }
+        }
+    }
+    beside.sort();
+    beside.dedup();
+    let cubes = touched_cubes(path);
+    let before = chi4(vol, side.conn, &cubes);
+    if !connected_near(vol, side, &ends, path) {
+        return false;
+    }
+    for &q in path {
+        let [u, v, w] = q.map(|x| x as usize);
+        vol.set(u, v, w, side.inside);
+    }
+    let after = chi4(vol, side.conn, &cubes);
+    if after - before == -8 && connected_near(vol, space, &beside, path) {
+        return true;
+    }
+    for &q in path {
+        let [u, v, w] = q.map(|x| x as usize);
+        vol.set(u, v, w, space.inside);
+    }
+    false
+}
+
+/// Are `seeds` (samples of `side`) connected to each other through `side` within a margin of
+/// the path's box?
+fn connected_near(vol: &MaskVolume, side: Side, seeds: &[[i64; 3]], path: &[[i64; 3]]) -> bool {
+    let Some(&first) = seeds.first() else {
+        return true;
+    };
+    let mut b = BBox::EMPTY;
+    for &q in path.iter().chain(seeds) {
+        b.include(q);
+    }
+    MARGINS.iter().any(|&m| {
+        let (lo, hi) = (b.min.map(|x| x - m), b.max.map(|x| x + m));
+        let inside_box = |q: [i64; 3]| (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]);
+        let mut seen: FastMap<[i64; 3], ()> = FastMap::default();
+        seen.insert(first, ());
+        let mut stack = vec![first];
+        while let Some(q) = stack.pop() {
+            for &d in side.offsets() {
+                let n = add(q, d);
+                if inside_box(n)
+                    && vol.get(n[0], n[1], n[2]) == side.inside
+                    && seen.insert(n, ()).is_none()
+                {
+                    stack.push(n);
+                }
+            }
+        }
+        seeds.iter().all(|q| seen.contains_key(q))
+    })
+}
+
+/// Cubes (lower corners) with a corner among the samples.
+fn touched_cubes(samples: &[[i64; 3]]) -> Vec<[i64; 3]> {
+    let mut set: FastMap<[i64; 3], ()> = FastMap::default();
+    for q in samples {
+        for b in 0..8i64 {
+            set.insert(
+                [q[0] - (b & 1), q[1] - (b >> 1 & 1), q[2] - (b >> 2 & 1)],
+                (),
+            );
+        }
+    }
+    set.into_keys().collect()
+}
+
+/// Four times the Euler characteristic of the isosurface inside these cubes (eight times the
+/// solid's, summed over them).
+fn chi4(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> i64 {
+    let table = cases(conn);
+    cubes
+        .iter()
+        .map(|&q| {
+            let case = &table[crate::surface::cube_case(vol, q) as usize];
+            case.chi4[..case.pieces.len()]
+                .iter()
+                .map(|&c| c as i64)
+                .sum::<i64>()
+        })
+        .sum()
+}
+
+/// Checks the phase's result on the whole volume: every component and cavity the options ask
+/// to remove is gone, but those the mode kept.
+fn check_parts(vol: &MaskVolume, opts: &SimplifyOptions, out: &Parts) -> Result<()> {
+    let conn = opts.surface.connectivity;
+    let kept = |kind| out.kept.iter().filter(|k| k.part == kind).count();
+    if opts.min_component.is_some() || opts.largest {
+        let left = components_to_remove(&label(vol, Side::solid(conn)).0, opts).len();
+        if left != kept(PartKind::Component) {
+            return Err(Error::Internal(format!(
+                "after removing components, {left} are left that should have gone ({} kept by the mode); nothing written",
+                kept(PartKind::Component)
+            )));
+        }
+    }
+    if opts.min_cavity.is_some() || opts.fill_cavities {
+        let left = cavities_to_remove(&label(vol, Side::space(conn)).0, opts).len();
+        if left != kept(PartKind::Cavity) {
+            return Err(Error::Internal(format!(
+                "after removing cavities, {left} are left that should have gone ({} kept by the mode); nothing written",
+                kept(PartKind::Cavity)
+            )));
+        }
+    }
+    Ok(())
+}
