@@ -529,6 +529,7 @@ def simplify(
     min_cavity: Optional[int] = None,
     fill_cavities: bool = False,
     spherical: bool = False,
+    keep_handles: Optional[int] = None,
     inside: str = "above",
     connectivity: int = 6,
     fill_only: bool = False,
@@ -561,6 +562,8 @@ def simplify(
       through its thinnest wall, whichever changes fewer samples; ``fill_cavities``: every one.
     - ``spherical``: one component, no cavity, no handle (``largest``, ``fill_cavities``,
       ``tau=math.inf``); ``tau`` may then be left out.
+    - ``keep_handles``: remove handles from the smallest up until this many are left, whatever
+      their size (instead of ``tau``).
 
     Components and cavities change only as asked; the result is checked before it is returned.
     """
@@ -568,6 +571,13 @@ def simplify(
         if tau is not None and tau != math.inf:
             raise ValueError(f"spherical removes every handle: leave tau out (got {tau!r})")
         tau, largest, fill_cavities = math.inf, True, True
+    if keep_handles is not None:
+        if tau is not None or spherical:
+            raise ValueError("keep_handles replaces tau: give one of tau, keep_handles, spherical")
+        if isinstance(keep_handles, bool) or not isinstance(keep_handles, (int, np.integer)) \
+                or keep_handles < 0:
+            raise ValueError(f"keep_handles must be a whole number, 0 or more, got {keep_handles!r}")
+        tau = math.inf
     if tau is None:
         raise ValueError("give tau (math.inf removes every handle), or spherical=True")
     iso = _check_iso(iso)
@@ -590,6 +600,7 @@ def simplify(
         largest=bool(largest),
         min_cavity=_check_count("min_cavity", min_cavity),
         fill_cavities=bool(fill_cavities),
+        keep_handles=None if keep_handles is None else int(keep_handles),
     )
     if fill_only and cut_only:
         raise ValueError("fill_only and cut_only exclude each other: one, or neither (both)")

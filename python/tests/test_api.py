@@ -211,6 +211,20 @@ def test_spherical_and_min_component_by_skimage(conn):
         assert all(n == 0 or n >= 30 for n in sizes[1:]), case
 
 
+def test_keep_handles_leaves_that_many_by_skimage():
+    rng = np.random.default_rng(RNG_SEED + 13)
+    v = noise(rng, (18, 18, 18), smooth=3)
+    iso = float(np.quantile(v, 0.5))
+    before = betti(v > iso)
+    assert before[1] >= 4
+    for k in (0, 2, before[1] + 1):
+        out, rep = isotopo.simplify(v, iso, keep_handles=k)
+        assert betti(out > iso) == (before[0], min(k, before[1]), before[2])
+        assert rep.genus_after == min(k, before[1])
+    with pytest.raises(ValueError, match="keep_handles"):
+        isotopo.simplify(v, iso, 20, keep_handles=2)
+
+
 def test_spherical_refuses_a_finite_tau():
     with pytest.raises(ValueError, match="spherical"):
         isotopo.simplify(np.zeros((4, 4, 4)), 0.5, 3, spherical=True)

@@ -260,6 +260,7 @@ fn simplify(
         largest: opt(opts, "largest")?,
         min_cavity: opt(opts, "min_cavity")?,
         fill_cavities: opt(opts, "fill_cavities")?,
+        keep_handles: opt(opts, "keep_handles")?,
     };
     let target = ArrayView::of(out)?;
     run_job(py, volume, opts, progress, |source, p| {

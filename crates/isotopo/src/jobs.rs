@@ -571,6 +571,7 @@ impl Simplified {
             "largest": opts.largest,
             "min_cavity": opts.min_cavity,
             "fill_cavities": opts.fill_cavities,
+            "keep_handles": opts.keep_handles,
             "wall_values": self.wall_values,
             "well_composed": self.outcome.composition.as_ref().map(|c| serde_json::json!({
                 "critical_before": c.before,

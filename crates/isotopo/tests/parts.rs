@@ -6,14 +6,14 @@
 mod common;
 
 use common::oracle::betti;
-use common::{shapes, Rng, BOTH};
+use common::{Rng, BOTH};
 use isotopo::progress::NoProgress;
-use isotopo::simplify::{Mode, PartKind, PartOperation, SimplifyOptions};
+use isotopo::simplify::{KeepReason, Mode, PartKind, PartOperation, SimplifyOptions};
 use isotopo::topology::Connectivity;
 use isotopo::volume::InMemoryVolume;
 
 /// The sizes of the parts of one side, by flood fill over the grid padded with outside (the
-/// outside part touching the padding, the exterior, is left out): (sizes, exterior size).
+/// outside part touching the padding, the exterior, is left out).
 fn part_sizes(inside: &[bool], dims: [usize; 3], side: bool, six: bool) -> Vec<usize> {
     let p = dims.map(|d| d as i64 + 2);
     let at = |q: [i64; 3]| -> bool {
@@ -365,4 +365,43 @@ fn random_volumes_get_the_components_and_cavities_asked_for() {
         removed > 500 && kept_by_mode * 20 < removed,
         "{removed} removed, {kept_by_mode} kept"
     );
+}
+
+/// `keep_handles`: the genus of the result is exactly k (or what there was), by the oracle;
+/// components and cavities stay. (Which handles stay is decided by their sizes as measured at
+/// the time: a wall can shorten the loops of a handle beside it, so a handle kept may measure
+/// less in the result than one removed earlier.)
+#[test]
+fn keep_handles_leaves_exactly_that_many() {
+    let mut rng = Rng(0x0006_e1e5);
+    let dims = [18, 18, 16];
+    let mut cases = 0;
+    for _ in 0..4 {
+        let values = common::smoothed_noise(dims, 2, &mut rng);
+        let iso = common::quantile(&values, 0.5);
+        let shifted: Vec<f32> = values.iter().map(|v| v - iso as f32).collect();
+        let vol = common::volume_from(dims, &shifted);
+        for conn in BOTH {
+            let before = betti(&common::mask_of(&vol, 0.0), dims, conn);
+            assert!(before.1 >= 4, "the test needs handles: {before:?}");
+            for k in [0, 1, 3, before.1 as usize + 2] {
+                let opts = SimplifyOptions {
+                    keep_handles: Some(k),
+                    well_composed: true,
+                    ..options(conn, 0.0)
+                };
+                let (done, mask) = run(&vol, &opts);
+                let after = betti(&mask, dims, conn);
+                assert_eq!(after.1, before.1.min(k as i64), "{conn:?} k {k}");
+                assert_eq!((after.0, after.2), (before.0, before.2));
+                // Kept for their size (at or above the last threshold) or by the count only.
+                let reasons = done.outcome.kept.iter().map(|h| h.reason);
+                assert!(reasons
+                    .clone()
+                    .all(|r| matches!(r, KeepReason::KeepHandles | KeepReason::Size)));
+                cases += 1;
+            }
+        }
+    }
+    assert_eq!(cases, 4 * 2 * 4);
 }

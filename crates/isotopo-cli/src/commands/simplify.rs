@@ -22,7 +22,7 @@ pub(crate) struct SimplifyArgs {
     /// below this; `inf` removes every handle. `isotopo analyze --plots` helps choose it.
     #[arg(
         long,
-        required_unless_present_any = ["tau_mm", "spherical"],
+        required_unless_present_any = ["tau_mm", "spherical", "keep_handles"],
         conflicts_with = "tau_mm"
     )]
     tau: Option<f64>,
@@ -68,6 +68,10 @@ pub(crate) struct SimplifyArgs {
     /// One component, no handle, no cavity: --largest --fill-cavities --tau inf.
     #[arg(long, conflicts_with_all = ["tau", "tau_mm"])]
     spherical: bool,
+    /// Remove handles from the smallest up until K are left (the output's genus is K),
+    /// whatever their size (instead of --tau).
+    #[arg(long, value_name = "K", conflicts_with_all = ["tau", "tau_mm", "spherical"])]
+    keep_handles: Option<usize>,
     /// Write a JSON report (genus before/after, every removed and kept handle).
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
@@ -82,7 +86,9 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     use isotopo::simplify::{Mode, SimplifyOptions};
     let surface = a.surface.options()?;
     let (tau, metric, flag) = match (a.tau, a.tau_mm) {
-        _ if a.spherical => (f64::INFINITY, isotopo::loops::Metric::Edges, "--tau"),
+        _ if a.spherical || a.keep_handles.is_some() => {
+            (f64::INFINITY, isotopo::loops::Metric::Edges, "--tau")
+        }
         (Some(t), _) => (t, isotopo::loops::Metric::Edges, "--tau"),
         (None, Some(t)) => (t, isotopo::loops::Metric::Millimetres, "--tau-mm"),
         (None, None) => return Err(Error::usage("give --tau or --tau-mm")),
@@ -116,6 +122,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         largest: a.largest || a.spherical,
         min_cavity: a.min_cavity,
         fill_cavities: a.fill_cavities || a.spherical,
+        keep_handles: a.keep_handles,
     };
     // Every output is checked before the work starts.
     let reader = a.input.open()?;
@@ -184,16 +191,16 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     let (filled, cut) = outcome.samples_filled_cut();
     let (max_distance, max_distance_mm) = outcome.max_distance();
     println!(
-        "{}: iso {}, inside {}, connectivity {}, sweep along {}, tau {}{}{}",
+        "{}: iso {}, inside {}, connectivity {}, sweep along {}, {}{}{}",
         info.path.display(),
         num(opts.iso),
         opts.inside.name(),
         opts.connectivity.number(),
         axis.name(),
-        if tau.is_finite() {
-            num(tau)
-        } else {
-            "inf".into()
+        match (a.keep_handles, tau.is_finite()) {
+            (Some(k), _) => format!("keep the {k} largest handles"),
+            (None, true) => format!("tau {}", num(tau)),
+            (None, false) => "tau inf".into(),
         },
         match sopts.mode {
             Mode::Both => "",
@@ -232,6 +239,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
             (KeepReason::ClosureFailed, "no clean wall found"),
             (KeepReason::Unmeasured, "Reeb loop beyond the search budget"),
             (KeepReason::PassLimit, "pass limit reached"),
+            (KeepReason::KeepHandles, "the largest (--keep-handles)"),
         ];
         let parts: Vec<String> = reasons
             .iter()

@@ -116,6 +116,9 @@ pub struct SimplifyOptions {
     pub min_cavity: Option<u64>,
     /// Every cavity goes (as with `min_cavity`); by default no.
     pub fill_cavities: bool,
+    /// Remove handles from the smallest up until this many are left, whatever their size
+    /// (`tau` is then ignored); by default none.
+    pub keep_handles: Option<usize>,
 }
 
 impl Default for SimplifyOptions {
@@ -133,6 +136,7 @@ impl Default for SimplifyOptions {
             largest: false,
             min_cavity: None,
             fill_cavities: false,
+            keep_handles: None,
         }
     }
 }
@@ -253,6 +257,8 @@ pub enum KeepReason {
     Unmeasured,
     /// Still below tau after the last pass allowed.
     PassLimit,
+    /// One of the `keep_handles` largest.
+    KeepHandles,
 }
 
 /// A handle left in the result.
@@ -372,40 +378,68 @@ pub fn simplify(
     affine: &Affine,
     progress: &dyn Progress,
 ) -> Result<Outcome> {
+    let mut original = FastMap::default();
+    let t = std::time::Instant::now();
+    let parts = if parts::wanted(opts) {
+        parts::remove_parts(vol, opts, &mut original, progress)?
+    } else {
+        Parts::default()
+    };
+    let parts_seconds = t.elapsed().as_secs_f64();
     let mut run = Run::new(opts, affine, progress);
-    if parts::wanted(opts) {
-        let t = std::time::Instant::now();
-        run.parts = parts::remove_parts(vol, opts, &mut run.original, progress)?;
-        run.seconds.parts = t.elapsed().as_secs_f64();
-    }
-    while run.passes < MAX_PASSES {
-        let from = run.removed.len();
-        let closed = run.sweep_pass(vol)?;
-        run.trim_walls(vol, from);
-        // Well-composed after every pass that changed something, so that the last pass (the
-        // one that closes nothing) analyses and certifies the volume as it is written.
-        let flipped = if opts.well_composed {
-            run.compose(vol)?
-        } else {
-            0
-        };
-        if closed == 0 && flipped == 0 {
+    run.original = original;
+    run.parts = parts;
+    run.seconds.parts = parts_seconds;
+    let Some(k) = opts.keep_handles else {
+        run.passes_until_done(vol)?;
+        return Ok(run.outcome(vol));
+    };
+    // Keep the k largest handles: measure them all (a pass closing nothing), remove the rest;
+    // a closure may lengthen the loops of handles near it, so measure what is left and go on
+    // until k are left or nothing more can go.
+    run.certifying = false;
+    run.retarget(f64::INFINITY, Some(0));
+    run.sweep_pass(vol)?;
+    for _ in 0..MAX_PASSES {
+        let left = run.kept.len();
+        let removable: Vec<&Kept> = run
+            .kept
+            .iter()
+            .map(|(_, h)| h)
+            .filter(|h| matches!(h.reason, KeepReason::KeepHandles | KeepReason::Size))
+            .collect();
+        if left <= k || removable.is_empty() {
             break;
         }
-        if run.passes == MAX_PASSES {
-            mark_stale(&mut run.kept, opts);
-            if run.certifying {
-                // The pass limit was reached: the last pass closed something.
-                run.certified = Some(false);
-            }
-        }
+        let tau = keep_handles_tau(&removable, opts.metric, (left - k).min(removable.len()));
+        run.retarget(tau, Some(left - k));
+        run.passes_until_done(vol)?;
     }
     Ok(run.outcome(vol))
 }
 
+/// The tau just above the `remove` smallest of `handles` (equal sizes at the threshold would
+/// all be below it: the budget of handles to remove stops there).
+fn keep_handles_tau(handles: &[&Kept], metric: Metric, remove: usize) -> f64 {
+    let mut sizes: Vec<f64> = handles
+        .iter()
+        .map(|h| match metric {
+            Metric::Edges => h.size.map_or(f64::INFINITY, |s| s as f64),
+            Metric::Millimetres => h.size_mm.unwrap_or(f64::INFINITY),
+        })
+        .collect();
+    sizes.sort_by(f64::total_cmp);
+    let largest_removed = sizes[remove - 1];
+    // Just above it: edges are whole numbers; millimetres, the next representable value.
+    match metric {
+        Metric::Edges => largest_removed + 0.5,
+        Metric::Millimetres => largest_removed * (1.0 + 1e-12) + 1e-12,
+    }
+}
+
 /// What simplify carries from step to step and pass to pass.
 struct Run<'a> {
-    opts: &'a SimplifyOptions,
+    opts: SimplifyOptions,
     affine: &'a Affine,
     progress: &'a dyn Progress,
     conn: Connectivity,
@@ -434,12 +468,14 @@ struct Run<'a> {
     intra_ribbon: usize,
     seconds: StageSeconds,
     parts: Parts,
+    /// Handles that may still be removed (`keep_handles`); `None`: no limit.
+    budget: Option<usize>,
 }
 
 impl<'a> Run<'a> {
-    fn new(opts: &'a SimplifyOptions, affine: &'a Affine, progress: &'a dyn Progress) -> Run<'a> {
+    fn new(opts: &SimplifyOptions, affine: &'a Affine, progress: &'a dyn Progress) -> Run<'a> {
         Run {
-            opts,
+            opts: *opts,
             affine,
             progress,
             conn: opts.surface.connectivity,
@@ -459,7 +495,42 @@ impl<'a> Run<'a> {
             intra_ribbon: 0,
             seconds: StageSeconds::default(),
             parts: Parts::default(),
+            budget: None,
         }
+    }
+
+    /// Sweeps, closes and makes the volume well-composed, pass after pass, until a pass closes
+    /// nothing and the step flips nothing (or the pass limit).
+    fn passes_until_done(&mut self, vol: &mut MaskVolume) -> Result<()> {
+        let first = self.passes;
+        while self.passes < first + MAX_PASSES {
+            let from = self.removed.len();
+            let closed = self.sweep_pass(vol)?;
+            self.trim_walls(vol, from);
+            // Well-composed after every pass that changed something, so that the last pass (the
+            // one that closes nothing) analyses and certifies the volume as it is written.
+            let flipped = if self.opts.well_composed {
+                self.compose(vol)?
+            } else {
+                0
+            };
+            if closed == 0 && flipped == 0 {
+                return Ok(());
+            }
+        }
+        mark_stale(&mut self.kept, &self.opts);
+        if self.certifying {
+            // The pass limit was reached: the last pass closed something.
+            self.certified = Some(false);
+        }
+        Ok(())
+    }
+
+    /// Closes handles below `tau` from now on, at most `budget` more of them.
+    fn retarget(&mut self, tau: f64, budget: Option<usize>) {
+        self.opts.tau = tau;
+        self.limits = self.opts.limits();
+        self.budget = budget;
     }
 
     /// One sweep over the whole volume, closing what it can; returns how many handles it closed.
@@ -614,11 +685,15 @@ impl<'a> Run<'a> {
             ..
         } = at;
         let l = self.loops_to_close(vol, caches, ribbons, at)?;
-        let candidates = plan(&l, self.opts).expect("a loop below tau");
+        let candidates = plan(&l, &self.opts).expect("a loop below tau");
         // Measured before this step's walls: if one landed near, measure again after the
         // rewind.
         let near = |x: &Loop| walls.iter().any(|w| overlaps(w, &loop_box(x), 2));
         if candidates.iter().any(|(_, x)| near(x)) {
+            return None;
+        }
+        if self.budget == Some(0) {
+            self.kept.push((s, at.kept(KeepReason::KeepHandles)));
             return None;
         }
         let key = memo_key(h);
@@ -626,7 +701,7 @@ impl<'a> Run<'a> {
             self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
             return None;
         }
-        let (opts, affine) = (self.opts, self.affine);
+        let (opts, affine) = (&self.opts, self.affine);
         let graph = &mut caches.graph;
         let done = close_handle(vol, opts, &l, &candidates, affine, graph, &mut self.refused);
         let Some((which, lp, applied, wall_kind)) = done else {
@@ -634,6 +709,9 @@ impl<'a> Run<'a> {
             self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
             return None;
         };
+        if let Some(b) = &mut self.budget {
+            *b = b.saturating_sub(applied.handles);
+        }
         let mut wall = BBox::EMPTY;
         for q in &applied.changed {
             wall.include(*q);
@@ -664,7 +742,7 @@ impl<'a> Run<'a> {
         at: Found<'l>,
     ) -> Option<Cow<'l, HandleLoops>> {
         let (h, l, s) = (at.handle, at.loops, at.slice);
-        let reason = match plan(l, self.opts) {
+        let reason = match plan(l, &self.opts) {
             Ok(_) => return Some(Cow::Borrowed(l)),
             Err(KeepReason::Size) if self.certifying => {
                 let (conn, limits, affine) = (self.conn, self.limits, self.affine);
