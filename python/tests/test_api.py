@@ -205,7 +205,7 @@ def test_spherical_and_min_component_by_skimage(conn):
         out, rep = isotopo.simplify(v, iso, 10, min_component=30, min_cavity=30, connectivity=conn)
         labels = label(np.pad(out > iso, 1), connectivity=fg)
         assert labels.max() == 0 or np.bincount(labels.ravel())[1:].min() >= 30, case
-        spaces = label(np.pad(out <= iso, 1), connectivity=bg)
+        spaces = label(np.pad(out <= iso, 1, constant_values=True), connectivity=bg)
         sizes = np.bincount(spaces.ravel())
         sizes[spaces[0, 0, 0]] = 0  # the exterior
         assert all(n == 0 or n >= 30 for n in sizes[1:]), case
