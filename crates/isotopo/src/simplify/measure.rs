@@ -1,7 +1,7 @@
 //! Measuring the handles a step of the sweep found, with what is kept between steps and passes
 //! so the same loop is not searched twice.
 
-use super::plan::{loop_box, overlaps};
+use super::plan::{overlaps, wall_near_loop};
 use crate::grid::MaskVolume;
 use crate::loops::{self, HandleLoops, Limits, Metric, SliceCache};
 use crate::surface::search::{FastMap, Graph, GraphCache};
@@ -185,16 +185,10 @@ impl Caches {
     /// Forgets the measurements whose loops come near one of the walls.
     pub(super) fn forget_near(&mut self, walls: &[BBox]) {
         self.memo.retain(|_, l| {
-            [&l.reeb, &l.cross].into_iter().flatten().all(|x| {
-                let b = loop_box(x);
-                !walls.iter().any(|w| {
-                    overlaps(w, &b, 2)
-                        && x.vertices.iter().any(|v| {
-                            let e = BBox { min: v.p, max: v.p };
-                            overlaps(w, &e, 2)
-                        })
-                })
-            })
+            let loops = [&l.reeb, &l.cross].into_iter().flatten();
+            loops
+                .clone()
+                .all(|x| !walls.iter().any(|w| wall_near_loop(w, x, 2)))
         });
         let memo = &self.memo;
         self.failed.retain(|k, _| memo.contains_key(k));

@@ -43,7 +43,7 @@ mod write;
 use certify::{certificate_holds, certify, Certificate};
 use measure::{memo_key, Caches, Lasting};
 pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
-use plan::{loop_box, overlaps, plan};
+use plan::{plan, wall_near_loop};
 use removal::{removal, Closure};
 use walls::{close_handle, Refused};
 use write::final_edits;
@@ -688,7 +688,7 @@ impl<'a> Run<'a> {
         let candidates = plan(&l, &self.opts).expect("a loop below tau");
         // Measured before this step's walls: if one landed near, measure again after the
         // rewind.
-        let near = |x: &Loop| walls.iter().any(|w| overlaps(w, &loop_box(x), 2));
+        let near = |x: &Loop| walls.iter().any(|w| wall_near_loop(w, x, 2));
         if candidates.iter().any(|(_, x)| near(x)) {
             return None;
         }

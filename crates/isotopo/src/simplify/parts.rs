@@ -133,6 +133,7 @@ pub(super) fn remove_parts(
         let owner = Owner::new(labels, &go, comps.len());
         remove(vol, Side::solid(conn), owner, opts, original, &mut out)?;
         progress.finish();
+        progress.check()?;
     }
     if opts.min_cavity.is_some() || opts.fill_cavities {
         progress.start("cavities", 1);

@@ -70,6 +70,19 @@ pub(super) fn loop_box(l: &Loop) -> BBox {
     b
 }
 
+/// Does the wall (a local box) come within `margin` of one of the loop's vertices? (A long
+/// loop's box holds much that is far from the loop.)
+pub(super) fn wall_near_loop(wall: &BBox, l: &Loop, margin: i64) -> bool {
+    overlaps(wall, &loop_box(l), margin)
+        && l.vertices.iter().any(|v| {
+            let e = BBox {
+                min: v.p,
+                max: v.end(),
+            };
+            overlaps(wall, &e, margin)
+        })
+}
+
 pub(super) fn overlaps(a: &BBox, b: &BBox, margin: i64) -> bool {
     (0..3).all(|k| a.min[k] - margin <= b.max[k] && b.min[k] <= a.max[k] + margin)
 }
