@@ -405,3 +405,40 @@ fn keep_handles_leaves_exactly_that_many() {
     }
     assert_eq!(cases, 4 * 2 * 4);
 }
+
+/// Out of core (a window of 8 planes, the rest in a scratch file) the parts and the handles go
+/// exactly as in memory.
+#[test]
+fn out_of_core_is_the_same_as_in_memory() {
+    let mut rng = Rng(0x000c_c00e);
+    let dims = [16, 14, 30];
+    let values = common::smoothed_noise(dims, 1, &mut rng);
+    let iso = common::quantile(&values, 0.6);
+    let shifted: Vec<f32> = values.iter().map(|v| v - iso as f32).collect();
+    let vol = common::volume_from(dims, &shifted);
+    for conn in BOTH {
+        for base in [
+            options(conn, 0.0).spherical(),
+            SimplifyOptions {
+                min_component: Some(20),
+                min_cavity: Some(20),
+                keep_handles: Some(2),
+                ..options(conn, 0.0)
+            },
+        ] {
+            let whole = SimplifyOptions {
+                max_slices: Some(0),
+                ..base
+            };
+            let window = SimplifyOptions {
+                max_slices: Some(8),
+                ..base
+            };
+            let (a, _) = run(&vol, &whole);
+            let (b, _) = run(&vol, &window);
+            let parts = a.outcome.parts.removed.len();
+            assert!(parts > 3, "{conn:?}: the test needs parts, has {parts}");
+            assert_eq!(a.outcome.edits, b.outcome.edits, "{conn:?}");
+        }
+    }
+}
