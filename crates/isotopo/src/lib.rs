@@ -60,7 +60,8 @@
 //! - [`sweep`]: contours, ribbons and the Reeb graph: every handle located.
 //! - [`loops`]: each handle's Reeb loop and cross loop, the shortest on the whole surface.
 //! - `closure`: walls across loops, written into the volume and verified.
-//! - [`simplify`](mod@simplify): sweep, measure, close, rewind, until no handle below tau is left.
+//! - [`simplify`](mod@simplify): components and cavities removed as asked (deleted, bridged,
+//!   filled or opened), then sweep, measure, close, rewind, until no handle below tau is left.
 //! - [`report`], [`plots`]: JSON, CSV and plots of the results; [`jobs`]: the entry points.
 
 // Index loops read better than iterator chains in the matrix and grid code here.

@@ -18,6 +18,13 @@
 //! Every closure is verified locally before it is kept (`closure::close`): it removes one handle
 //! of its own surface and changes nothing else, so b0 and b2 of the solid never change, which
 //! is checked again on the whole volume at the end.
+//!
+//! Before the sweep, the components and cavities the options ask to remove go (`parts.rs`: each
+//! deleted or filled, or bridged or opened by a shortest path where that flips fewer samples);
+//! the b0 and b2 they leave are what the handles' removal then keeps. After each pass the walls
+//! are trimmed: wall samples whose flip back is simple go back to the input. With
+//! `keep_handles`, a pass that closes nothing measures every handle first, and tau is set just
+//! above the smallest ones to go.
 
 pub use crate::closure::Operation;
 use crate::error::{Error, Result};
