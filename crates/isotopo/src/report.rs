@@ -320,17 +320,13 @@ fn parts_json(parts: &crate::simplify::Parts, info: &VolumeInfo) -> serde_json::
         .iter()
         .map(|k| with_mm(serde_json::to_value(k).unwrap_or_default(), &k.bbox))
         .collect();
-    let changed = |kind: PartKind| -> usize {
-        let of_kind = parts.removed.iter().filter(|r| r.part == kind);
-        of_kind.map(|r| r.samples_changed).sum()
-    };
     serde_json::json!({
         "components_deleted": parts.count(PartOperation::Delete),
         "components_bridged": parts.count(PartOperation::Bridge),
         "cavities_filled": parts.count(PartOperation::Fill),
         "cavities_opened": parts.count(PartOperation::Open),
-        "samples_changed_components": changed(PartKind::Component),
-        "samples_changed_cavities": changed(PartKind::Cavity),
+        "samples_changed_components": parts.samples_changed(PartKind::Component),
+        "samples_changed_cavities": parts.samples_changed(PartKind::Cavity),
         "refused": parts.refused,
         "b0_b2_after": parts.after,
         "removed": removed,

@@ -303,33 +303,35 @@ fn print_parts(parts: &isotopo::simplify::Parts) {
     if parts.after.is_none() {
         return;
     }
-    let changed = |kind: PartKind| -> usize {
-        let of_kind = parts.removed.iter().filter(|r| r.part == kind);
-        of_kind.map(|r| r.samples_changed).sum()
-    };
-    let kept = |kind: PartKind| parts.kept.iter().filter(|k| k.part == kind).count();
-    println!(
-        "components  {} removed: {} deleted, {} bridged ({} samples){}",
-        parts.count(Op::Delete) + parts.count(Op::Bridge),
-        parts.count(Op::Delete),
-        parts.count(Op::Bridge),
-        group(changed(PartKind::Component) as u64),
-        match kept(PartKind::Component) {
-            0 => String::new(),
-            n => format!("; {n} kept: no bridge under --fill-only"),
-        }
-    );
-    println!(
-        "cavities    {} removed: {} filled, {} opened ({} samples){}",
-        parts.count(Op::Fill) + parts.count(Op::Open),
-        parts.count(Op::Fill),
-        parts.count(Op::Open),
-        group(changed(PartKind::Cavity) as u64),
-        match kept(PartKind::Cavity) {
-            0 => String::new(),
-            n => format!("; {n} kept: no opening under --cut-only"),
-        }
-    );
+    let lines = [
+        (
+            "components",
+            PartKind::Component,
+            (Op::Delete, "deleted"),
+            (Op::Bridge, "bridged"),
+            "no bridge under --fill-only",
+        ),
+        (
+            "cavities  ",
+            PartKind::Cavity,
+            (Op::Fill, "filled"),
+            (Op::Open, "opened"),
+            "no opening under --cut-only",
+        ),
+    ];
+    for (name, kind, (whole, whole_verb), (join, join_verb), why_kept) in lines {
+        println!(
+            "{name}  {} removed: {} {whole_verb}, {} {join_verb} ({} samples){}",
+            parts.count(whole) + parts.count(join),
+            parts.count(whole),
+            parts.count(join),
+            group(parts.samples_changed(kind) as u64),
+            match parts.kept_count(kind) {
+                0 => String::new(),
+                n => format!("; {n} kept: {why_kept}"),
+            }
+        );
+    }
 }
 
 /// The well-composed step's line, and what another mesher needs to see the same surface.

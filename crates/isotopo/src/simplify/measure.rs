@@ -185,10 +185,8 @@ impl Caches {
     /// Forgets the measurements whose loops come near one of the walls.
     pub(super) fn forget_near(&mut self, walls: &[BBox]) {
         self.memo.retain(|_, l| {
-            let loops = [&l.reeb, &l.cross].into_iter().flatten();
-            loops
-                .clone()
-                .all(|x| !walls.iter().any(|w| wall_near_loop(w, x, 2)))
+            let mut loops = [&l.reeb, &l.cross].into_iter().flatten();
+            loops.all(|x| !walls.iter().any(|w| wall_near_loop(w, x, 2)))
         });
         let memo = &self.memo;
         self.failed.retain(|k, _| memo.contains_key(k));

@@ -792,14 +792,7 @@ impl<'a> Run<'a> {
         if back.is_empty() {
             return;
         }
-        let near: Vec<BBox> = back
-            .keys()
-            .map(|&q| BBox {
-                min: q.map(|x| x - 1),
-                max: q.map(|x| x + 1),
-            })
-            .collect();
-        self.lasting.forget_near(&near);
+        self.forget_near_samples(back.keys().copied());
         for (r, w) in self.removed[from..]
             .iter_mut()
             .zip(&mut self.wall_samples[from..])
@@ -810,6 +803,18 @@ impl<'a> Run<'a> {
             (r.max_distance, r.max_distance_mm) =
                 removal::max_distance(&r.samples, &r.points, self.affine);
         }
+    }
+
+    /// Forgets the lasting measurements whose searches reached next to one of these flipped
+    /// samples.
+    fn forget_near_samples(&mut self, samples: impl Iterator<Item = [i64; 3]>) {
+        let near: Vec<BBox> = samples
+            .map(|q| BBox {
+                min: q.map(|x| x - 1),
+                max: q.map(|x| x + 1),
+            })
+            .collect();
+        self.lasting.forget_near(&near);
     }
 
     /// After walls were written at slice `s`: sweep again from the lowest slice they touched.
@@ -844,15 +849,7 @@ impl<'a> Run<'a> {
         };
         let c = crate::compose::compose(vol, self.conn, only, self.progress)?;
         let flipped = c.flips.len();
-        let near: Vec<BBox> = c
-            .flips
-            .iter()
-            .map(|&(q, _)| BBox {
-                min: q.map(|x| x - 1),
-                max: q.map(|x| x + 1),
-            })
-            .collect();
-        self.lasting.forget_near(&near);
+        self.forget_near_samples(c.flips.iter().map(|&(q, _)| q));
         let (total, samples) = self.composition.get_or_insert_with(|| {
             (
                 crate::compose::Composition {

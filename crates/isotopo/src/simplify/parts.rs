@@ -109,6 +109,17 @@ impl Parts {
     pub fn count(&self, op: PartOperation) -> usize {
         self.removed.iter().filter(|r| r.operation == op).count()
     }
+
+    /// Samples flipped to remove the components (or the cavities).
+    pub fn samples_changed(&self, kind: PartKind) -> usize {
+        let of_kind = self.removed.iter().filter(|r| r.part == kind);
+        of_kind.map(|r| r.samples_changed).sum()
+    }
+
+    /// Components (or cavities) asked to go that the mode kept.
+    pub fn kept_count(&self, kind: PartKind) -> usize {
+        self.kept.iter().filter(|k| k.part == kind).count()
+    }
 }
 
 /// Whether the options ask for anything of this phase.
@@ -131,7 +142,7 @@ pub(super) fn remove_parts(
         let (comps, labels) = label(vol, Side::solid(conn));
         let go = components_to_remove(&comps, opts);
         let owner = Owner::new(labels, &go, comps.len());
-        remove(vol, Side::solid(conn), owner, opts, original, &mut out)?;
+        remove(vol, Side::solid(conn), owner, opts, original, &mut out);
         progress.finish();
         progress.check()?;
     }
@@ -140,7 +151,7 @@ pub(super) fn remove_parts(
         let (spaces, labels) = label(vol, Side::space(conn));
         let go = cavities_to_remove(&spaces, opts);
         let owner = Owner::new(labels, &go, spaces.len());
-        remove(vol, Side::space(conn), owner, opts, original, &mut out)?;
+        remove(vol, Side::space(conn), owner, opts, original, &mut out);
         progress.finish();
     }
     out.after = Some(check_parts(vol, opts, &out)?);
@@ -427,8 +438,8 @@ impl Owner {
     }
 }
 
-/// Removes the parts `go` of `side` (indices into `parts`, in that order): each by whichever of
-/// its two operations flips fewer samples and the mode allows.
+/// Removes the parts of `side` that go (those `owner` numbers, in that order): each by whichever
+/// of its two operations flips fewer samples and the mode allows.
 fn remove(
     vol: &mut MaskVolume,
     side: Side,
@@ -436,7 +447,7 @@ fn remove(
     opts: &SimplifyOptions,
     original: &mut FastMap<[i64; 3], bool>,
     out: &mut Parts,
-) -> Result<()> {
+) {
     let members = owner.members();
     // A component bridges by filling (adding material), a cavity opens by cutting.
     let (join_allowed, whole_allowed) = match (opts.mode, side.inside) {
@@ -479,9 +490,8 @@ fn remove(
                 }
             }
             None if whole_allowed => {
+                set_all(vol, m, !side.inside);
                 for &q in m {
-                    let [u, v, w] = q.map(|x| x as usize);
-                    vol.set(u, v, w, !side.inside);
                     original.entry(q).or_insert(side.inside);
                 }
                 PartRemoved {
@@ -501,7 +511,6 @@ fn remove(
         };
         out.removed.push(removed);
     }
-    Ok(())
 }
 
 fn join_operation(side: Side) -> PartOperation {
@@ -558,7 +567,6 @@ fn shortest_join(
     me: u32,
     budget: usize,
 ) -> Option<Vec<[i64; 3]>> {
-    // Each path sample -> the one before it (itself for the first).
     let mut parent: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
     // A path sample's neighbours of `side`: does it touch what stays (an end), or another part
     // that goes (unusable)?
@@ -576,37 +584,23 @@ fn shortest_join(
         }
         Some(stays)
     };
-    let mut layer = Vec::new();
-    for &q in from {
-        for &d in side.offsets() {
-            let n = add(q, d);
-            if in_volume(vol, n) && vol.get(n[0], n[1], n[2]) != side.inside {
-                if parent.contains_key(&n) {
-                    continue;
-                }
-                parent.insert(n, n);
-                match classify(n) {
-                    Some(true) => return Some(vec![n]),
-                    Some(false) => layer.push(n),
-                    None => {}
-                }
-            }
-        }
-    }
-    let mut length = 1;
+    // Layer by layer out from the part's own samples; each path sample's parent is the one
+    // before it, the first's itself.
+    let mut layer: Vec<[i64; 3]> = from.to_vec();
+    let mut length = 0;
     while !layer.is_empty() && length < budget {
         length += 1;
         let mut next = Vec::new();
         for &q in &layer {
             for &d in side.offsets() {
                 let n = add(q, d);
-                if !in_volume(vol, n) || vol.get(n[0], n[1], n[2]) == side.inside {
+                if !in_volume(vol, n)
+                    || vol.get(n[0], n[1], n[2]) == side.inside
+                    || parent.contains_key(&n)
+                {
                     continue;
                 }
-                if parent.contains_key(&n) {
-                    continue;
-                }
-                parent.insert(n, q);
+                parent.insert(n, if length == 1 { n } else { q });
                 match classify(n) {
                     Some(true) => return Some(path_to(&parent, n)),
                     Some(false) => next.push(n),
@@ -672,19 +666,21 @@ fn verify_join(
     if !connected_near(vol, side, &ends, path) {
         return false;
     }
-    for &q in path {
-        let [u, v, w] = q.map(|x| x as usize);
-        vol.set(u, v, w, side.inside);
-    }
+    set_all(vol, path, side.inside);
     let after = chi4(vol, side.conn, &cubes);
     if after - before == -8 && connected_near(vol, space, &beside, path) {
         return true;
     }
-    for &q in path {
-        let [u, v, w] = q.map(|x| x as usize);
-        vol.set(u, v, w, space.inside);
-    }
+    set_all(vol, path, space.inside);
     false
+}
+
+/// Sets the samples (in the volume) inside or outside.
+fn set_all(vol: &mut MaskVolume, samples: &[[i64; 3]], inside: bool) {
+    for &q in samples {
+        let [u, v, w] = q.map(|x| x as usize);
+        vol.set(u, v, w, inside);
+    }
 }
 
 /// Are `seeds` (samples of `side`) connected to each other through `side` within a margin of
@@ -753,28 +749,29 @@ fn chi4(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> i64 {
 /// job checks them again with the genus pass, which counts them another way).
 fn check_parts(vol: &MaskVolume, opts: &SimplifyOptions, out: &Parts) -> Result<(u64, u64)> {
     let conn = opts.surface.connectivity;
-    let kept = |kind| out.kept.iter().filter(|k| k.part == kind).count();
     let comps = label(vol, Side::solid(conn)).0;
     let spaces = label(vol, Side::space(conn)).0;
-    let mut left = 0;
-    if opts.min_component.is_some() || opts.largest {
-        left = components_to_remove(&comps, opts).len();
-    }
-    if left != kept(PartKind::Component) {
-        return Err(Error::Internal(format!(
-            "after removing components, {left} are left that should have gone ({} kept by the mode); nothing written",
-            kept(PartKind::Component)
-        )));
-    }
-    let mut left = 0;
-    if opts.min_cavity.is_some() || opts.fill_cavities {
-        left = cavities_to_remove(&spaces, opts).len();
-    }
-    if left != kept(PartKind::Cavity) {
-        return Err(Error::Internal(format!(
-            "after removing cavities, {left} are left that should have gone ({} kept by the mode); nothing written",
-            kept(PartKind::Cavity)
-        )));
+    // With neither option of a kind asked, its list of parts to remove is empty.
+    let left = [
+        (
+            PartKind::Component,
+            "components",
+            components_to_remove(&comps, opts),
+        ),
+        (
+            PartKind::Cavity,
+            "cavities",
+            cavities_to_remove(&spaces, opts),
+        ),
+    ];
+    for (kind, name, left) in left {
+        if left.len() != out.kept_count(kind) {
+            return Err(Error::Internal(format!(
+                "after removing {name}, {} are left that should have gone ({} kept by the mode); nothing written",
+                left.len(),
+                out.kept_count(kind)
+            )));
+        }
     }
     let cavities = spaces.iter().filter(|s| !s.exterior).count();
     Ok((comps.len() as u64, cavities as u64))
