@@ -151,14 +151,18 @@ fn cube_at(at: [usize; 3]) -> Vec<[usize; 3]> {
         .collect()
 }
 
-#[test]
-fn far_specks_are_deleted_and_a_near_one_bridged() {
-    // A ball of radius 7 round (11.5, 11.5, 11.5): its lowest samples are at z = 5. Specks of
-    // 1, 2 and 2 samples far from it (bridging them would cost more than deleting them), and a
-    // 2×2×2 cube at z = 2..3 right below it: one sample at z = 4 bridges it (deleting: 8).
+/// A ball of radius 7 round (11.5, 11.5, 11.5): its lowest samples are at z = 5. Specks of 1, 2
+/// and 2 samples far from it (bridging them would cost more than deleting them), and a 2×2×2
+/// cube at z = 2..3 right below it: one sample at z = 4 bridges it (deleting: 8).
+fn ball_and_specks() -> InMemoryVolume {
     let mut extra = vec![[1, 1, 1], [1, 20, 1], [1, 21, 1], [20, 1, 1], [21, 1, 1]];
     extra.extend(cube_at([11, 11, 2]));
-    let vol = ball_with(24, 7.0, &extra, None);
+    ball_with(24, 7.0, &extra, None)
+}
+
+#[test]
+fn far_specks_are_deleted_and_a_near_one_bridged() {
+    let vol = ball_and_specks();
     for conn in BOTH {
         let (comps, _) = parts_of(&common::mask_of(&vol, 0.0), vol.dims(), conn);
         assert_eq!(comps.len(), 5, "{conn:?}: {comps:?}");
@@ -232,9 +236,7 @@ fn a_cavity_behind_a_thin_wall_is_opened_and_a_small_one_filled() {
 
 #[test]
 fn the_modes_choose_the_only_operation_they_allow() {
-    let mut extra = vec![[1, 1, 1], [1, 20, 1], [1, 21, 1], [20, 1, 1], [21, 1, 1]];
-    extra.extend(cube_at([11, 11, 2]));
-    let specks = ball_with(24, 7.0, &extra, None);
+    let specks = ball_and_specks();
     for conn in BOTH {
         for (mode, op) in [
             (Mode::CutOnly, PartOperation::Delete),
