@@ -148,3 +148,24 @@ def gudhi_betti(solid, connectivity):
     cc.compute_persistence(homology_coeff_field=2, min_persistence=-1)
     b = list(cc.persistent_betti_numbers(0.0, 0.0)) + [0, 0, 0]
     return b[0], b[1], b[2]
+
+
+def workers():
+    """How many checks run at once: CROSSCHECK_JOBS, else the machine's cores (isotopo runs
+    one core per process, and the oracles mostly one too)."""
+    return max(1, int(os.environ.get("CROSSCHECK_JOBS", os.cpu_count() or 1)))
+
+
+def in_parallel(fn, jobs):
+    """fn(*job) for every job, in worker processes; the results in the order of the jobs. Jobs
+    print their own lines (flushed, so lines of different jobs do not mix). Put the longest
+    jobs first: they are started first."""
+    jobs = list(jobs)
+    if workers() == 1 or len(jobs) <= 1:
+        return [fn(*job) for job in jobs]
+    from concurrent.futures import ProcessPoolExecutor
+
+    sys.stdout.flush()  # a forked worker would print the parent's unflushed lines again
+    with ProcessPoolExecutor(max_workers=workers()) as pool:
+        futures = [pool.submit(fn, *job) for job in jobs]
+        return [f.result() for f in futures]

@@ -33,7 +33,7 @@ from scipy.ndimage import uniform_filter
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import oracle_loops as oracle  # noqa: E402
-from common import REAL, SHARED, load, run_isotopo  # noqa: E402
+from common import REAL, SHARED, in_parallel, load, run_isotopo  # noqa: E402
 
 
 def save(path, values, spacing=(1.0, 1.0, 1.0)):
@@ -140,6 +140,27 @@ def crops(tmp, rng, per_volume=2):
     return out
 
 
+def check_random(values, spacing, conn, axis, tau, tau_mm, what):
+    """check_volume on a random volume, in a directory of its own; prints its failures."""
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "rand.nii.gz"
+        save(path, values, spacing)
+        f, data = check_volume(path, conn, axis, tau, tau_mm, Path(d), what)
+    if f:
+        print("  " + "\n  ".join(f), flush=True)
+    return f, data
+
+
+def check_crop(name, path, spacing, conn):
+    """check_volume on a crop of a real volume, in a directory of its own; prints one line."""
+    with tempfile.TemporaryDirectory() as d:
+        f, data = check_volume(path, conn, "z", 20, 20.0 if max(spacing) > min(spacing) else None, Path(d),
+                               f"crop of {name} (conn {conn})")
+    print(f"  {name:<44} conn {conn:>2}: genus {data.get('genus')}, systole "
+          f"{data.get('systole_edges')} edges{'' if not f else '   <-- FAILED'}", flush=True)
+    return f
+
+
 def main(argv):
     n_random = int(argv[argv.index("--random") + 1]) if "--random" in argv else 40
     per_volume = int(argv[argv.index("--crops") + 1]) if "--crops" in argv else 2
@@ -151,32 +172,28 @@ def main(argv):
         print("tori: loops shortest in mm against the analytic lengths (ratio), and the loops shortest in edges")
         failures += tori(tmp)
         print(f"{n_random} random volumes: analyze (mutual, systole) and simplify (tau, inf), by the oracle")
-        sizes, mismatches = [], 0
+        jobs = []
         for k in range(n_random):
             conn = (6, 26)[k % 2]
             axis = "zxy"[k // 2 % 3]
             aniso = k % 4 == 3
             spacing = (1.0, 1.0, 2.0) if aniso else (1.0, 1.0, 1.0)
-            path = tmp / "rand.nii.gz"
-            save(path, random_volume(rng), spacing)
             tau = [5, 8, 12, 20][k % 4]
-            f, data = check_volume(path, conn, axis, tau, 10.0 if aniso else None, tmp, f"random {k} (conn {conn}, axis {axis}{', spacing 1,1,2' if aniso else ''})")
+            what = f"random {k} (conn {conn}, axis {axis}{', spacing 1,1,2' if aniso else ''})"
+            jobs.append((random_volume(rng), spacing, conn, axis, tau, 10.0 if aniso else None, what))
+        results = in_parallel(check_random, jobs)
+        for f, _ in results:
             failures += f
-            sizes.append(data.get("genus", 0))
-            mismatches += data.get("systole_mismatch", 0)
-            if f:
-                print("  " + "\n  ".join(f), flush=True)
+        sizes = [data.get("genus", 0) for _, data in results]
+        mismatches = sum(data.get("systole_mismatch", 0) for _, data in results)
         print(f"  genus of the random volumes: {min(sizes)}..{max(sizes)}, {sum(sizes)} handles in all; "
               f"smallest handle size != systole (edges or mm) on {mismatches} of {n_random}")
         if SHARED.exists():
             print("crops (40^3, centred on handles) of the real volumes")
-            for name, p, spacing in crops(tmp, rng, per_volume):
-                for conn in (6, 26):
-                    f, data = check_volume(p, conn, "z", 20, 20.0 if max(spacing) > min(spacing) else None, tmp,
-                                           f"crop of {name} (conn {conn})")
-                    failures += f
-                    print(f"  {name:<44} conn {conn:>2}: genus {data.get('genus')}, systole "
-                          f"{data.get('systole_edges')} edges{'' if not f else '   <-- FAILED'}", flush=True)
+            jobs = [(name, p, spacing, conn) for name, p, spacing in crops(tmp, rng, per_volume) for conn in (6, 26)]
+            # The embryo's crops (genus 200-400) take the oracle longest: started first.
+            jobs.sort(key=lambda job: not job[0].startswith("embryo"))
+            failures += sum(in_parallel(check_crop, jobs), [])
         else:
             print(f"skipping the crops of the real volumes: {SHARED} not found")
     if failures:

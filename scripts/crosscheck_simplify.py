@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common import REAL, ROOT, SHARED, load, run_isotopo, skimage_betti
+from common import REAL, ROOT, SHARED, in_parallel, load, run_isotopo, skimage_betti
 
 # Left out of the coverage matrix's slices, run by `--matrix all` only: the embryo at tau inf
 # takes 150 s (about 50 small handles on one tall cycle, each measured again after each wall); it
@@ -58,7 +58,9 @@ MATRIX_RUN_SECONDS = 45
 
 
 def always_runs():
-    return [(name, tau, 6, "both", "z", "above") for name in REAL for tau in ("20", "inf")]
+    runs = [(name, tau, 6, "both", "z", "above") for name in REAL for tau in ("20", "inf")]
+    # The slow ones first: the checks run in parallel, and a long one started last would run alone.
+    return sorted(runs, key=lambda r: (r[0], r[1]) not in SLOW)
 
 
 def matrix_runs():
@@ -235,6 +237,15 @@ def check(run, tmp, timeout=None):
     return failures
 
 
+def check_in_tmp(run, timeout, deadline):
+    """check() in a directory of its own; a run not started by the deadline is only named."""
+    if deadline is not None and time.time() > deadline:
+        print(f"the slice's {MATRIX_SECONDS} s are spent; not run: {run}", flush=True)
+        return []
+    with tempfile.TemporaryDirectory() as d:
+        return check(run, Path(d), timeout)
+
+
 def main(argv):
     if not SHARED.exists():
         print(f"skipping: {SHARED} not found")
@@ -250,17 +261,11 @@ def main(argv):
         print(f"coverage matrix: slice {k} ({MATRIX_PER_RUN} of {len(matrix)} runs, within {MATRIX_SECONDS} s; "
               "the slice turns with the commit)")
         chosen = matrix_slice(k, matrix)
-    failures = []
-    for run in always_runs():
-        with tempfile.TemporaryDirectory() as d:
-            failures += check(run, Path(d))
-    start = time.perf_counter()
-    for i, run in enumerate(chosen):
-        if not everything and time.perf_counter() - start > MATRIX_SECONDS:
-            print(f"the slice's {MATRIX_SECONDS} s are spent; not run: {chosen[i:]}")
-            break
-        with tempfile.TemporaryDirectory() as d:
-            failures += check(run, Path(d), None if everything else MATRIX_RUN_SECONDS)
+    failures = sum(in_parallel(check_in_tmp, [(run, None, None) for run in always_runs()]), [])
+    # The slice: runs not started within MATRIX_SECONDS of its start are left to other commits.
+    deadline = None if everything else time.time() + MATRIX_SECONDS
+    timeout = None if everything else MATRIX_RUN_SECONDS
+    failures += sum(in_parallel(check_in_tmp, [(run, timeout, deadline) for run in chosen]), [])
     if failures:
         print("\nFAILED:\n" + "\n".join(failures))
         return 1
