@@ -610,12 +610,15 @@ fn find(
     };
     let frame = vol.frame;
     let len = |lp: &[Vertex]| searcher.length(&frame, lp);
+    let mut reeb = None;
     if limits.size_only && top_level {
-        if let Some(f) = cross_is_smaller(top, cache, h, searcher, &p, limits) {
-            return f;
+        match cross_is_smaller(top, cache, h, searcher, &p, limits) {
+            Race::Cross(found) => return found,
+            Race::Reeb(r) => reeb = Some(r),
+            Race::Undecided => {}
         }
     }
-    let first = searcher.odd_loop(top, &p, limits.below);
+    let first = reeb.unwrap_or_else(|| searcher.odd_loop(top, &p, limits.below));
     let mut exact = first.exact;
     let q1 = match first.found {
         Some(q) => Some(q),
@@ -668,11 +671,17 @@ fn find(
     }
 }
 
-/// When only the smaller loop matters: some loop crossing `p` once, found cheaply (chained round
-/// a tall cycle), then the shortest loop `c` crossing it once; if no loop shorter than `c`
-/// crosses `p` once (a search only as deep as `c` is long, so cheap for the short cross loops
-/// of noise handles), `c` is the handle's smaller loop and the shortest loop crossing `p` need
-/// not be looked for. `None` otherwise.
+/// When only the smaller loop matters (the handle's size): some loop crossing `p` once, found
+/// cheaply (`first`, chained round a tall cycle), and the shortest loop `c` crossing it once; if
+/// no loop shorter than `c` crosses `p` once, `c` is the handle's smaller loop and the shortest
+/// loop crossing `p` (long round a tall cycle) need not be measured.
+///
+/// A search for the shortest loop crossing a long curve is cheap only when that loop is short,
+/// and both curves are long here. So the two searches race, bounded by the same limit, doubled
+/// until one finds a loop: the cost is about that of the shorter answer. When the loop crossing
+/// `p` is found first it is the Reeb loop, and the cross loop is looked for from it (a short
+/// curve), not from `first`: `first` may go round other handles too, and then the loops crossing
+/// it once are longer than the handle's cross loop.
 fn cross_is_smaller(
     top: &mut Graph,
     cache: &mut SliceCache,
@@ -680,21 +689,49 @@ fn cross_is_smaller(
     searcher: &Searcher,
     p: &[Vertex],
     limits: Limits,
-) -> Option<Found> {
-    let frame = top.vol.frame;
-    let first = some_odd_loop(top, cache, h, p)?;
-    let c = searcher.odd_loop(top, &first, limits.below).found?;
-    let shorter = searcher.odd_loop(top, p, searcher.length(&frame, &c));
-    if !shorter.none_below() {
-        return None;
+) -> Race {
+    let Some(first) = some_odd_loop(top, cache, h, p) else {
+        return Race::Undecided;
+    };
+    let mut limit = RACE_START.min(limits.below);
+    loop {
+        let r = searcher.odd_loop(top, p, limit);
+        if !r.exact {
+            return Race::Undecided;
+        }
+        if r.found.is_some() {
+            return Race::Reeb(r);
+        }
+        let c = searcher.odd_loop(top, &first, limit);
+        if let Some(c) = c.found {
+            // Shorter than the limit, which no loop crossing `p` is.
+            return Race::Cross(Found {
+                reeb: Some(first.clone()),
+                cross: Some(c),
+                exact: false,
+                basis: Some((p.to_vec(), first)),
+            });
+        }
+        if !c.exact || limit >= limits.below {
+            return Race::Undecided;
+        }
+        limit = (limit * 2.0).min(limits.below);
     }
-    Some(Found {
-        reeb: Some(first.clone()),
-        cross: Some(c),
-        exact: false,
-        basis: Some((p.to_vec(), first)),
-    })
 }
+
+/// What [`cross_is_smaller`]'s race found.
+enum Race {
+    /// A loop crossing the cheap loop once is shorter than any crossing `p`: the handle's loops.
+    Cross(Found),
+    /// The shortest loop crossing `p` (exact, shorter than the limit): the Reeb loop.
+    Reeb(OddLoop),
+    /// Neither within the limit or the budgets.
+    Undecided,
+}
+
+/// The first limit of [`cross_is_smaller`]'s race (edges or millimetres): a noise handle's
+/// loops are a few edges long.
+const RACE_START: f64 = 16.0;
 
 /// Measures both loops of a handle of the volume whose surface graph is `top` (see `find`),
 /// shortest in `limits.metric`; lengths in millimetres along the vertices' interpolated

@@ -344,6 +344,9 @@ impl<'a> Graph<'a> {
     /// generation, so the many searches of one loop ask the region once per vertex).
     #[inline]
     fn usable_mask(&mut self, region: &dyn Region, i: u32) -> u16 {
+        if region.allows_all() {
+            return ((1u32 << self.arena[i as usize].n) - 1) as u16;
+        }
         let sc = &mut self.scratch;
         if sc.usable_stamp.len() <= i as usize {
             let n = (i as usize + 1).next_power_of_two();
@@ -418,12 +421,21 @@ impl Iterator for Steps {
 pub trait Region {
     /// Whether the loop may use piece `p`.
     fn allows(&self, p: &PieceRef) -> bool;
+
+    /// Whether every piece is allowed (then the searches ask nothing of each edge).
+    fn allows_all(&self) -> bool {
+        false
+    }
 }
 
 /// Every piece.
 pub struct Everywhere;
 impl Region for Everywhere {
     fn allows(&self, _: &PieceRef) -> bool {
+        true
+    }
+
+    fn allows_all(&self) -> bool {
         true
     }
 }
