@@ -33,6 +33,20 @@ fn good_nifti() -> Vec<u8> {
     b
 }
 
+/// A NumPy .npy (version 1) with the given descr and shape in its header, and 24 int16 samples.
+fn npy_bytes(descr: &str, shape: &str) -> Vec<u8> {
+    let mut dict = format!("{{'descr': {descr}, 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + dict.len() + 1) % 64 != 0 {
+        dict.push(' ');
+    }
+    dict.push('\n');
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
+    b.extend_from_slice(dict.as_bytes());
+    b.extend_from_slice(&[0u8; 48]);
+    b
+}
+
 fn gzip(bytes: &[u8]) -> Vec<u8> {
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     e.write_all(bytes).unwrap();
@@ -229,6 +243,19 @@ fn cases() -> Vec<Case> {
             files: vec![("g.nii", good.clone())],
             args: vec!["convert", "{d}/g.nii", "-o", "{d}/out.xyz"],
             message: &["cannot tell the output format"],
+        },
+        Case {
+            // Found by mutating files (issue 20): the dtype's first byte not ASCII panicked.
+            name: "npy dtype not ASCII",
+            files: vec![("a.npy", npy_bytes("'\u{2026}i2'", "(4, 3, 2)"))],
+            args: vec!["info", "{d}/a.npy"],
+            message: &["a.npy", "dtype"],
+        },
+        Case {
+            name: "npy dtype empty",
+            files: vec![("a.npy", npy_bytes("''", "(4, 3, 2)"))],
+            args: vec!["genus", "{d}/a.npy", "--iso", "1"],
+            message: &["a.npy", "dtype"],
         },
         Case {
             name: "missing input",

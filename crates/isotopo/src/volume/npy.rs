@@ -23,7 +23,10 @@ struct NpyHeader {
 }
 
 fn parse_descr(path: &Path, d: &str) -> Result<(DType, Endian)> {
-    let (order, ty) = d.split_at(1.min(d.len()));
+    // The byte order is one character; split after it, not after a byte (a header is not
+    // always ASCII).
+    let cut = d.chars().next().map_or(0, char::len_utf8);
+    let (order, ty) = d.split_at(cut);
     let endian = match order {
         "<" | "|" => Endian::Little,
         ">" => Endian::Big,
