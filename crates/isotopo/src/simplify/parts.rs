@@ -15,13 +15,14 @@
 //! A bridge or a tunnel is verified before it is kept: the samples on the unchanged side next to
 //! it stay connected (nothing splits), the far end touches one part that stays, and the Euler
 //! characteristic of the solid drops by exactly one, so exactly one component or cavity went and
-//! no handle came or went. Deleting a whole component or filling a whole cavity is exact by
+//! no handle came or went. When the check refuses a path, up to three more are tried, each
+//! avoiding the samples of those refused. Deleting a whole component or filling a whole cavity is exact by
 //! construction (with the component go its handles and the cavities it alone enclosed; with the
 //! cavity, the handles of its walls, and components floating in it join the one around it). The
 //! job checks the result on the whole volume.
 //!
-//! Components are labelled by flood fill over the whole mask: this phase holds every plane in
-//! memory, one more bit per sample for the labels, and the samples of the parts that go.
+//! Components are labelled by a union-find pass over the whole mask: this phase holds every
+//! plane in memory, a 4-byte label per sample, and the samples of the parts that go.
 
 use crate::error::{Error, Result};
 use crate::grid::simple::{neighbourhood, FACES};
@@ -458,20 +459,24 @@ fn remove(
     for (k, m) in members.iter().enumerate() {
         let size = m.len();
         let budget = if whole_allowed { size - 1 } else { usize::MAX };
-        let join = if join_allowed && budget > 0 {
-            shortest_join(vol, side, m, &owner, k as u32, budget)
-        } else {
-            None
-        };
         let bbox = original_box(vol, m);
         let mut joined = None;
-        if let Some(path) = join {
+        // A refused path's samples are not tried again: the next shortest goes elsewhere.
+        let mut refused: FastMap<[i64; 3], ()> = FastMap::default();
+        for _ in 0..JOIN_ATTEMPTS {
+            if !join_allowed || budget == 0 {
+                break;
+            }
+            let Some(path) = shortest_join(vol, side, m, &owner, k as u32, budget, &refused) else {
+                break;
+            };
             // verify_join leaves the path flipped when it keeps it.
             if verify_join(vol, side, &path, &owner, k as u32) {
                 joined = Some(path);
-            } else {
-                out.refused += 1;
+                break;
             }
+            out.refused += 1;
+            refused.extend(path.iter().map(|&q| (q, ())));
         }
         let removed = match joined {
             Some(path) => {
@@ -566,6 +571,7 @@ fn shortest_join(
     owner: &Owner,
     me: u32,
     budget: usize,
+    refused: &FastMap<[i64; 3], ()>,
 ) -> Option<Vec<[i64; 3]>> {
     let mut parent: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
     // A path sample's neighbours of `side`: does it touch what stays (an end), or another part
@@ -597,6 +603,7 @@ fn shortest_join(
                 if !in_volume(vol, n)
                     || vol.get(n[0], n[1], n[2]) == side.inside
                     || parent.contains_key(&n)
+                    || refused.contains_key(&n)
                 {
                     continue;
                 }
@@ -624,6 +631,10 @@ fn path_to(parent: &FastMap<[i64; 3], [i64; 3]>, end: [i64; 3]) -> Vec<[i64; 3]>
     path.reverse();
     path
 }
+
+/// Paths tried for one part before it is deleted or filled instead (or kept, when the mode
+/// allows only joins): each avoids the samples of those refused before it.
+const JOIN_ATTEMPTS: usize = 4;
 
 /// Margins round a path within which what must stay connected is looked for.
 const MARGINS: [i64; 2] = [2, 8];
