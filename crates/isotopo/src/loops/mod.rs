@@ -753,9 +753,7 @@ pub fn measure(
         metric: limits.metric,
         geometry,
     };
-    let tt = std::time::Instant::now();
     let found = find(top, cache, h, conn, limits, &searcher);
-    if std::env::var("XDBG").is_ok() { eprintln!("XDBG measure cut={} t={:.4} reeb={:?} cross={:?} top={}", h.located.cut.len(), tt.elapsed().as_secs_f64(), found.reeb.as_ref().map(|x| x.len()), found.cross.as_ref().map(|x| x.len()), matches!(h.located.volume, CycleVolume::Top)); }
     let (reeb, cross) = (found.reeb, found.cross);
     let mut r = reeb
         .as_ref()
