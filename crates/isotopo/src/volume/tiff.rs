@@ -15,10 +15,30 @@ use tiff::tags::Tag;
 
 type Dec = Decoder<BufReader<File>>;
 
+/// The decoder's limits for a file of `len` bytes: what its tags and strips can describe. A
+/// count read from a tag (the decoder allocates for it before reading) is bounded by the bytes
+/// the file holds, a page by what deflate can expand them to (at most 1,032 to 1), so a corrupt
+/// header is an error, not an allocation of terabytes.
+fn limits(len: u64) -> Limits {
+    const DEFLATE_MAX_RATIO: u64 = 1032;
+    let bytes = usize::try_from(len).unwrap_or(usize::MAX);
+    let mut l = Limits::default();
+    l.decoding_buffer_size = usize::try_from(len.saturating_mul(DEFLATE_MAX_RATIO))
+        .unwrap_or(usize::MAX)
+        .max(1 << 26);
+    l.ifd_value_size = bytes;
+    l.intermediate_buffer_size = bytes;
+    l
+}
+
 fn decoder(path: &Path) -> Result<Dec> {
     let f = File::open(path).map_err(|e| Error::io(path, "opening", e))?;
+    let len = f
+        .metadata()
+        .map_err(|e| Error::io(path, "opening", e))?
+        .len();
     Decoder::new(BufReader::new(f))
-        .map(|d| d.with_limits(Limits::unlimited()))
+        .map(|d| d.with_limits(limits(len)))
         .map_err(|e| {
             Error::input(
                 path,
@@ -29,9 +49,15 @@ fn decoder(path: &Path) -> Result<Dec> {
 }
 
 fn tiff_err(path: &Path, page: usize, e: tiff::TiffError) -> Error {
+    let why = match e {
+        tiff::TiffError::LimitsExceeded => {
+            "a tag or page larger than the file can hold: a corrupt header".to_string()
+        }
+        e => e.to_string(),
+    };
     Error::input(
         path,
-        format!("page {} cannot be decoded ({e})", page + 1),
+        format!("page {} cannot be decoded ({why})", page + 1),
         "a TIFF stack of grayscale pages",
     )
 }
