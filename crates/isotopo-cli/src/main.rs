@@ -6,6 +6,7 @@ mod args;
 mod commands;
 mod print;
 mod progress;
+mod signals;
 
 use clap::{Parser, Subcommand};
 use commands::{analyze, convert, genus, handles, info, mesh, simplify};
@@ -73,11 +74,17 @@ fn quiet_on_closed_pipe() {
 #[cfg(not(unix))]
 fn quiet_on_closed_pipe() {}
 
+/// Exit codes: 0 done; 2 bad input or options (the message says what to change); 3 a bug in
+/// isotopo (an internal check failed, or a panic); 130 interrupted (nothing was written).
 fn main() -> ExitCode {
     return_freed_memory();
     quiet_on_closed_pipe();
+    signals::catch_interrupts();
+    signals::report_panics();
     let cli = Cli::parse();
-    let result = match cli.command {
+    let run = std::panic::catch_unwind(|| match cli.command {
+        // How the tests see what a bug would do (there is no other way to make one on purpose).
+        _ if std::env::var_os("ISOTOPO_PANIC_FOR_TESTS").is_some() => panic!("a deliberate panic"),
         Command::Info(a) => info::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Genus(a) => genus::run(a),
@@ -85,12 +92,18 @@ fn main() -> ExitCode {
         Command::Handles(a) => handles::run(a),
         Command::Analyze(a) => analyze::run(a),
         Command::Simplify(a) => simplify::run(a),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("isotopo: error: {e}");
-            ExitCode::from(if e.is_user_error() { 2 } else { 1 })
+    });
+    match run {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(isotopo::Error::Cancelled)) => {
+            eprintln!("isotopo: interrupted; nothing was written");
+            ExitCode::from(130)
         }
+        Ok(Err(e)) => {
+            eprintln!("isotopo: error: {e}");
+            ExitCode::from(if e.is_user_error() { 2 } else { 3 })
+        }
+        // The panic hook has said what happened.
+        Err(_) => ExitCode::from(3),
     }
 }

@@ -24,6 +24,10 @@ impl Bars {
 }
 
 impl Progress for Bars {
+    fn cancelled(&self) -> bool {
+        crate::signals::interrupted()
+    }
+
     fn start(&self, stage: &str, total: u64) {
         if !self.enabled {
             return;

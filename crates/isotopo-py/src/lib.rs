@@ -487,10 +487,10 @@ fn save(
         };
         info.header = FormatHeader::None;
     }
-    let progress = PyProgress::new(None);
-    run(py, &progress, move || {
+    let progress = &PyProgress::new(None);
+    run(py, progress, move || {
         let mut reader = ArrayReader::new(view, info);
-        isotopo::volume::convert(&mut reader, &path)
+        isotopo::volume::convert(&mut reader, &path, progress)
     })
 }
 

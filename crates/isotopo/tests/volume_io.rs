@@ -84,7 +84,8 @@ fn bits_equal(a: &Samples, b: &Samples) -> bool {
 
 fn write(vol: &InMemoryVolume, path: &Path) {
     let mut v = vol.clone();
-    volume::convert(&mut v, path).unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+    volume::convert(&mut v, path, &isotopo::progress::NoProgress)
+        .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
 }
 
 fn read(path: &Path, opts: &ReadOptions) -> InMemoryVolume {

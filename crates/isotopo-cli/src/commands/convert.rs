@@ -21,6 +21,5 @@ pub(crate) struct ConvertArgs {
 pub(crate) fn run(a: ConvertArgs) -> Result<()> {
     let mut reader = a.input.open()?;
     let bars = progress::Bars::new(a.quiet);
-    let _ = &bars;
-    volume::convert(reader.as_mut(), &a.output)
+    volume::convert(reader.as_mut(), &a.output, &bars)
 }

@@ -399,14 +399,23 @@ pub fn create(path: &Path, source: &VolumeInfo) -> Result<Box<dyn SliceWriter>> 
     })
 }
 
-/// Copies every slice of `reader` to a new file at `out` (format from its extension).
-pub fn convert(reader: &mut dyn SliceReader, out: &Path) -> Result<()> {
+/// Copies every slice of `reader` to a new file at `out` (format from its extension). Stops
+/// with [`Error::Cancelled`] when `progress` says so; nothing is written then.
+pub fn convert(
+    reader: &mut dyn SliceReader,
+    out: &Path,
+    progress: &dyn crate::progress::Progress,
+) -> Result<()> {
     let mut writer = create(out, reader.info())?;
     let mut slice = Samples::new(reader.info().dtype);
+    progress.start("convert", reader.info().nz() as u64);
     for _ in 0..reader.info().nz() {
+        progress.check()?;
         reader.read_slice(&mut slice)?;
         writer.write_slice(&slice)?;
+        progress.advance(1);
     }
+    progress.finish();
     let info = reader.info().clone();
     writer.finish(&info)
 }

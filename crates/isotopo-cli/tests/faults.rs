@@ -1,0 +1,112 @@
+//! Interrupts and bugs: Ctrl-C or SIGTERM stops a run with exit code 130, leaves no temporary
+//! file and the earlier output as it was; a panic is one line and exit code 3.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Files in a folder, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Uniform noise, 64³ uint8 (dims and type from the name): at 127.5 its tens of thousands of
+/// handles keep `simplify --tau inf` busy for seconds.
+fn noise(dir: &Path) -> std::path::PathBuf {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let bytes: Vec<u8> = (0..64 * 64 * 64)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 32) as u8
+        })
+        .collect();
+    let path = dir.join("noise_64x64x64_uint8.raw");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+fn interrupted_by(signal: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noise(dir.path());
+    let output = dir.path().join("out.nii");
+    std::fs::write(&output, b"the earlier output").unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_isotopo"))
+        .args([
+            "simplify",
+            input.to_str().unwrap(),
+            "--iso",
+            "127.5",
+            "--tau",
+            "inf",
+        ])
+        .args(["-o", output.to_str().unwrap(), "-q"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    let sent = Instant::now();
+    let kill = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{signal}: {stderr}");
+    assert!(
+        stderr.contains("interrupted; nothing was written"),
+        "{stderr}"
+    );
+    assert!(
+        sent.elapsed() < Duration::from_secs(10),
+        "{signal}: stopped {:?} after the signal",
+        sent.elapsed()
+    );
+    assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+    assert_eq!(
+        listing(dir.path()),
+        ["noise_64x64x64_uint8.raw", "out.nii"],
+        "{signal}: a temporary file left"
+    );
+}
+
+#[test]
+fn ctrl_c_stops_and_leaves_the_earlier_output() {
+    interrupted_by("-INT");
+}
+
+#[test]
+fn sigterm_stops_and_leaves_the_earlier_output() {
+    interrupted_by("-TERM");
+}
+
+#[test]
+fn a_bug_is_one_line_and_exit_code_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noise(dir.path());
+    let out = Command::new(env!("CARGO_BIN_EXE_isotopo"))
+        .args(["genus", input.to_str().unwrap(), "--iso", "127.5"])
+        .env("ISOTOPO_PANIC_FOR_TESTS", "1")
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("isotopo: internal error (please report): a deliberate panic at "),
+        "{stderr}"
+    );
+    assert!(stderr.contains("; to reproduce: "), "{stderr}");
+    assert!(
+        stderr.contains(" genus ") && stderr.trim_end().ends_with("--iso 127.5"),
+        "{stderr}"
+    );
+}
