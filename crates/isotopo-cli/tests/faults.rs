@@ -110,3 +110,70 @@ fn a_bug_is_one_line_and_exit_code_3() {
         "{stderr}"
     );
 }
+
+/// A small tmpfs, unmounted when dropped; `None` where mounting is not allowed (not root).
+struct SmallDisk(tempfile::TempDir);
+
+impl SmallDisk {
+    fn mount(options: &str) -> Option<SmallDisk> {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", options, "tmpfs"])
+            .arg(dir.path())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then_some(SmallDisk(dir))
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.0.path()).status();
+    }
+}
+
+/// A full disk and a read-only folder: exit code 2 naming the problem, the earlier file at the
+/// output path as it was, no temporary file left. (Needs `mount`, so root: CI's machine.)
+#[test]
+fn full_disk_and_read_only_folder_keep_the_earlier_output() {
+    let Some(disk) = SmallDisk::mount("size=64k") else {
+        eprintln!("skipped: cannot mount a tmpfs here (not root)");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let input = noise(dir.path());
+    let output = disk.0.path().join("out.nii");
+    std::fs::write(&output, b"the earlier output").unwrap();
+    let run = || {
+        Command::new(env!("CARGO_BIN_EXE_isotopo"))
+            .args([
+                "convert",
+                input.to_str().unwrap(),
+                "-o",
+                output.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+    };
+    // 256 KiB of samples on a 64 KiB disk.
+    let out = run();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("No space left on device"), "{stderr}");
+    assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+    assert_eq!(listing(disk.0.path()), ["out.nii"]);
+    // The same folder read-only.
+    let remount = Command::new("mount")
+        .args(["-o", "remount,ro"])
+        .arg(disk.0.path())
+        .status()
+        .unwrap();
+    assert!(remount.success());
+    let out = run();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("Read-only file system"), "{stderr}");
+    assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+    assert_eq!(listing(disk.0.path()), ["out.nii"]);
+}
