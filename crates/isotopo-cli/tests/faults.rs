@@ -177,3 +177,48 @@ fn full_disk_and_read_only_folder_keep_the_earlier_output() {
     assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
     assert_eq!(listing(disk.0.path()), ["out.nii"]);
 }
+
+/// Two runs writing the same output at once never interleave: each writes its own temporary
+/// file and renames it into place, so the output is one run's whole file or the other's.
+#[test]
+fn two_runs_writing_one_output_do_not_interleave() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = noise(dir.path());
+    // A second input of another type (so another length): the first one's samples as int16.
+    let b = dir.path().join("noise_64x64x64_int16.raw");
+    let wide: Vec<u8> = std::fs::read(&a)
+        .unwrap()
+        .iter()
+        .flat_map(|&v| (v as i16 * 3).to_le_bytes())
+        .collect();
+    std::fs::write(&b, wide).unwrap();
+    let convert = |input: &Path, output: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_isotopo"))
+            .args(["convert", input.to_str().unwrap(), "-o", output.to_str().unwrap()])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let done = |child: std::process::Child| {
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let refs = tempfile::tempdir().unwrap();
+    let (ra, rb) = (refs.path().join("a.nrrd"), refs.path().join("b.nrrd"));
+    done(convert(&a, &ra));
+    done(convert(&b, &rb));
+    let (ra, rb) = (std::fs::read(ra).unwrap(), std::fs::read(rb).unwrap());
+    assert_ne!(ra.len(), rb.len());
+    let output = dir.path().join("out.nrrd");
+    for _ in 0..5 {
+        let (x, y) = (convert(&a, &output), convert(&b, &output));
+        done(x);
+        done(y);
+        let got = std::fs::read(&output).unwrap();
+        assert!(got == ra || got == rb, "the output mixes the two runs");
+        assert_eq!(
+            listing(dir.path()),
+            ["noise_64x64x64_int16.raw", "noise_64x64x64_uint8.raw", "out.nrrd"]
+        );
+    }
+}
