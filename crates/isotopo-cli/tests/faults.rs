@@ -194,14 +194,23 @@ fn two_runs_writing_one_output_do_not_interleave() {
     std::fs::write(&b, wide).unwrap();
     let convert = |input: &Path, output: &Path| {
         Command::new(env!("CARGO_BIN_EXE_isotopo"))
-            .args(["convert", input.to_str().unwrap(), "-o", output.to_str().unwrap()])
+            .args([
+                "convert",
+                input.to_str().unwrap(),
+                "-o",
+                output.to_str().unwrap(),
+            ])
             .stderr(Stdio::piped())
             .spawn()
             .unwrap()
     };
     let done = |child: std::process::Child| {
         let out = child.wait_with_output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     };
     let refs = tempfile::tempdir().unwrap();
     let (ra, rb) = (refs.path().join("a.nrrd"), refs.path().join("b.nrrd"));
@@ -218,7 +227,11 @@ fn two_runs_writing_one_output_do_not_interleave() {
         assert!(got == ra || got == rb, "the output mixes the two runs");
         assert_eq!(
             listing(dir.path()),
-            ["noise_64x64x64_int16.raw", "noise_64x64x64_uint8.raw", "out.nrrd"]
+            [
+                "noise_64x64x64_int16.raw",
+                "noise_64x64x64_uint8.raw",
+                "out.nrrd"
+            ]
         );
     }
 }
