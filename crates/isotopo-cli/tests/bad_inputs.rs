@@ -2,9 +2,8 @@
 
 mod common;
 
-use common::isotopo;
+use common::{isotopo, listing};
 use std::io::Write;
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// A valid little NIfTI-1 volume (4×3×2 int16) as bytes.
@@ -391,15 +390,6 @@ fn cases() -> Vec<Case> {
             message: &["does not exist"],
         },
     ]
-}
-
-fn listing(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    v.sort();
-    v
 }
 
 #[test]

@@ -1,19 +1,12 @@
 //! Interrupts and bugs: Ctrl-C or SIGTERM stops a run with exit code 130, leaves no temporary
 //! file and the earlier output as it was; a panic is one line and exit code 3.
 
+mod common;
+
+use common::{convert, listing};
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// Files in a folder, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
-        .collect();
-    names.sort();
-    names
-}
 
 /// Uniform noise, 64³ uint8 (dims and type from the name): at 127.5 its tens of thousands of
 /// handles keep `simplify --tau inf` busy for seconds.
@@ -145,37 +138,25 @@ fn full_disk_and_read_only_folder_keep_the_earlier_output() {
     let input = noise(dir.path());
     let output = disk.0.path().join("out.nii");
     std::fs::write(&output, b"the earlier output").unwrap();
-    let run = || {
-        Command::new(env!("CARGO_BIN_EXE_isotopo"))
-            .args([
-                "convert",
-                input.to_str().unwrap(),
-                "-o",
-                output.to_str().unwrap(),
-            ])
-            .output()
-            .unwrap()
-    };
-    // 256 KiB of samples on a 64 KiB disk.
-    let out = run();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("No space left on device"), "{stderr}");
-    assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
-    assert_eq!(listing(disk.0.path()), ["out.nii"]);
-    // The same folder read-only.
-    let remount = Command::new("mount")
-        .args(["-o", "remount,ro"])
-        .arg(disk.0.path())
-        .status()
-        .unwrap();
-    assert!(remount.success());
-    let out = run();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("Read-only file system"), "{stderr}");
-    assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
-    assert_eq!(listing(disk.0.path()), ["out.nii"]);
+    // 256 KiB of samples on a 64 KiB disk; then the same folder read-only.
+    for (remount, reason) in [
+        (None, "No space left on device"),
+        (Some("remount,ro"), "Read-only file system"),
+    ] {
+        if let Some(options) = remount {
+            let status = Command::new("mount")
+                .args(["-o", options])
+                .arg(disk.0.path())
+                .status();
+            assert!(status.unwrap().success());
+        }
+        let out = convert(&input, &output).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(reason), "{stderr}");
+        assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+        assert_eq!(listing(disk.0.path()), ["out.nii"]);
+    }
 }
 
 /// Two runs writing the same output at once never interleave: each writes its own temporary
@@ -193,13 +174,7 @@ fn two_runs_writing_one_output_do_not_interleave() {
         .collect();
     std::fs::write(&b, wide).unwrap();
     let convert = |input: &Path, output: &Path| {
-        Command::new(env!("CARGO_BIN_EXE_isotopo"))
-            .args([
-                "convert",
-                input.to_str().unwrap(),
-                "-o",
-                output.to_str().unwrap(),
-            ])
+        convert(input, output)
             .stderr(Stdio::piped())
             .spawn()
             .unwrap()
