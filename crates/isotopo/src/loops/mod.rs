@@ -610,19 +610,20 @@ fn find(
     };
     let frame = vol.frame;
     let len = |lp: &[Vertex]| searcher.length(&frame, lp);
-    let mut reeb = None;
+    // What the race already searched is not searched again.
+    let (mut searched, mut cheap) = (None, None);
     if limits.size_only && top_level {
         match cross_is_smaller(top, cache, h, searcher, &p, limits) {
             Race::Cross(found) => return found,
-            Race::Reeb(r) => reeb = Some(r),
+            Race::Reeb { search, first } => (searched, cheap) = (Some(search), Some(first)),
             Race::Undecided => {}
         }
     }
-    let first = reeb.unwrap_or_else(|| searcher.odd_loop(top, &p, limits.below));
+    let first = searched.unwrap_or_else(|| searcher.odd_loop(top, &p, limits.below));
     let mut exact = first.exact;
     let q1 = match first.found {
         Some(q) => Some(q),
-        None => some_odd_loop(top, cache, h, &p),
+        None => cheap.or_else(|| some_odd_loop(top, cache, h, &p)),
     };
     let Some(q1) = q1 else {
         return Found {
@@ -700,7 +701,7 @@ fn cross_is_smaller(
             return Race::Undecided;
         }
         if r.found.is_some() {
-            return Race::Reeb(r);
+            return Race::Reeb { search: r, first };
         }
         let c = searcher.odd_loop(top, &first, limit);
         if let Some(c) = c.found {
@@ -712,8 +713,12 @@ fn cross_is_smaller(
                 basis: Some((p.to_vec(), first)),
             });
         }
-        if !c.exact || limit >= limits.below {
+        if !c.exact {
             return Race::Undecided;
+        }
+        if limit >= limits.below {
+            // Neither loop is shorter than the limit: `r` is the search `find` would make.
+            return Race::Reeb { search: r, first };
         }
         limit = (limit * 2.0).min(limits.below);
     }
@@ -723,9 +728,10 @@ fn cross_is_smaller(
 enum Race {
     /// A loop crossing the cheap loop once is shorter than any crossing `p`: the handle's loops.
     Cross(Found),
-    /// The shortest loop crossing `p` (exact, shorter than the limit): the Reeb loop.
-    Reeb(OddLoop),
-    /// Neither within the limit or the budgets.
+    /// The exact search for the shortest loop crossing `p` below the race's last limit (the
+    /// Reeb loop, or none below the caller's limit), and the cheap loop crossing `p` once.
+    Reeb { search: OddLoop, first: Vec<Vertex> },
+    /// The budgets ran out first.
     Undecided,
 }
 

@@ -16,9 +16,10 @@ use tiff::tags::Tag;
 type Dec = Decoder<BufReader<File>>;
 
 /// The decoder's limits for a file of `len` bytes: what its tags and strips can describe. A
-/// count read from a tag (the decoder allocates for it before reading) is bounded by the bytes
-/// the file holds, a page by what deflate can expand them to (at most 1,032 to 1), so a corrupt
-/// header is an error, not an allocation of terabytes.
+/// page, and the values of a tag (the decoder allocates for their count before reading them),
+/// are bounded by what deflate can expand the file to (at most 1,032 to 1; at least 64 MiB),
+/// compressed strips by the file itself, so a corrupt header is an error, not an allocation of
+/// terabytes.
 fn limits(len: u64) -> Limits {
     const DEFLATE_MAX_RATIO: u64 = 1032;
     let bytes = usize::try_from(len).unwrap_or(usize::MAX);
