@@ -16,10 +16,10 @@
 //! it stay connected (nothing splits), the far end touches one part that stays, and the Euler
 //! characteristic of the solid drops by exactly one, so exactly one component or cavity went and
 //! no handle came or went. When the check refuses a path, up to three more are tried, each
-//! avoiding the samples of those refused. Deleting a whole component or filling a whole cavity is exact by
-//! construction (with the component go its handles and the cavities it alone enclosed; with the
-//! cavity, the handles of its walls, and components floating in it join the one around it). The
-//! job checks the result on the whole volume.
+//! avoiding the samples of those refused. Deleting a whole component or filling a whole cavity
+//! is exact by construction (with the component go its handles and the cavities it alone
+//! enclosed; with the cavity, the handles of its walls, and components floating in it join the
+//! one around it). The job checks the result on the whole volume.
 //!
 //! Components are labelled by a union-find pass over the whole mask: this phase holds every
 //! plane in memory, a 4-byte label per sample, and the samples of the parts that go.
@@ -463,10 +463,12 @@ fn remove(
         let mut joined = None;
         // A refused path's samples are not tried again: the next shortest goes elsewhere.
         let mut refused: FastMap<[i64; 3], ()> = FastMap::default();
-        for _ in 0..JOIN_ATTEMPTS {
-            if !join_allowed || budget == 0 {
-                break;
-            }
+        let attempts = if join_allowed && budget > 0 {
+            JOIN_ATTEMPTS
+        } else {
+            0
+        };
+        for _ in 0..attempts {
             let Some(path) = shortest_join(vol, side, m, &owner, k as u32, budget, &refused) else {
                 break;
             };
