@@ -56,29 +56,11 @@ fn return_freed_memory() {
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn return_freed_memory() {}
 
-/// `isotopo info scan.nii | head` should end quietly when `head` does, as other command-line
-/// tools do, not panic on the closed pipe: restore the default action of SIGPIPE (Rust ignores it).
-#[cfg(unix)]
-fn quiet_on_closed_pipe() {
-    extern "C" {
-        fn signal(signum: i32, handler: usize) -> usize;
-    }
-    const SIGPIPE: i32 = 13;
-    const SIG_DFL: usize = 0;
-    // SAFETY: sets a signal disposition to the default, before any thread starts.
-    unsafe {
-        signal(SIGPIPE, SIG_DFL);
-    }
-}
-
-#[cfg(not(unix))]
-fn quiet_on_closed_pipe() {}
-
 /// Exit codes: 0 done; 2 bad input or options (the message says what to change); 3 a bug in
 /// isotopo (an internal check failed, or a panic); 130 interrupted (nothing was written).
 fn main() -> ExitCode {
     return_freed_memory();
-    quiet_on_closed_pipe();
+    signals::quiet_on_closed_pipe();
     signals::catch_interrupts();
     signals::report_panics();
     let cli = Cli::parse();

@@ -1,5 +1,6 @@
 //! Interrupts and panics, so that neither leaves a user with half a file or a stack dump.
 //!
+//! - A closed pipe (`| head`) ends the command quietly.
 //! - Ctrl-C (SIGINT) or SIGTERM sets a flag the library polls between steps (a slice, a
 //!   handle, a plane written): the command stops with "interrupted", exit code 130, and the
 //!   temporary output file is removed as the error unwinds. A second signal stops at once.
@@ -22,6 +23,7 @@ mod sys {
         pub fn raise(signum: i32) -> i32;
     }
     pub const SIGINT: i32 = 2;
+    pub const SIGPIPE: i32 = 13;
     pub const SIGTERM: i32 = 15;
     pub const SIG_DFL: usize = 0;
 }
@@ -47,6 +49,17 @@ pub fn catch_interrupts() {
         let handler = on_signal as extern "C" fn(i32) as usize;
         sys::signal(sys::SIGINT, handler);
         sys::signal(sys::SIGTERM, handler);
+    }
+}
+
+/// `isotopo info scan.nii | head` should end quietly when `head` does, as other command-line
+/// tools do, not panic on the closed pipe: restore the default action of SIGPIPE (Rust ignores
+/// it).
+pub fn quiet_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: sets a signal disposition to the default, before any thread starts.
+    unsafe {
+        sys::signal(sys::SIGPIPE, sys::SIG_DFL);
     }
 }
 
