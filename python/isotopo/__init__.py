@@ -42,6 +42,8 @@ __all__ = [
     "simplify",
     "load",
     "save",
+    "set_memory_limit",
+    "memory_limit",
     "Topology",
     "Surface",
     "Handle",
@@ -697,6 +699,25 @@ def save(
             raise ValueError(f"affine must be 4×4, got shape {a.shape}")
         a = a.tolist()
     _native.save(_fspath(path), prep.array, None if like is None else like.header, a)
+
+
+def set_memory_limit(limit: Union[int, str, None] = None) -> None:
+    """Sets how large this process may grow during isotopo's calls: bytes, a size such as
+    ``"2G"`` or ``"512M"`` (powers of 1024), a share of the machine's memory such as ``"50%"``,
+    or ``None`` for the default (3/4 of the machine's memory, or of the container's limit).
+
+    The limit counts the whole process, your arrays included: it is what the system's
+    out-of-memory killer looks at. A call that would pass it raises ``MemoryError`` saying what
+    did not fit (before allocating it, where its size is known in advance), and returns nothing.
+    """
+    if isinstance(limit, bool) or not (limit is None or isinstance(limit, (int, str))):
+        raise TypeError(f"the memory limit must be an int, a str or None, not {type(limit).__name__}")
+    _native.set_memory_limit(limit)
+
+
+def memory_limit() -> int:
+    """The memory limit in force, in bytes (see :func:`set_memory_limit`)."""
+    return int(_native.memory_limit())
 
 
 def _fspath(path: Any) -> str:

@@ -420,6 +420,27 @@ def test_a_panic_is_an_exception_not_an_abort():
     assert isotopo.genus(torus(), 0.0).b1 == 1  # and the module still works
 
 
+def test_a_memory_limit_too_small_is_a_memoryerror():
+    v = torus()
+    try:
+        isotopo.set_memory_limit("1M")  # below what the interpreter already holds
+        assert isotopo.memory_limit() == 1 << 20
+        for call in (lambda: isotopo.genus(v, 0.0), lambda: isotopo.simplify(v, 0.0, 5)):
+            with pytest.raises(MemoryError, match="not enough memory for .*limit of 1.0 MiB"):
+                call()
+        isotopo.set_memory_limit(3 << 30)
+        assert isotopo.memory_limit() == 3 << 30
+        assert isotopo.genus(v, 0.0).b1 == 1
+    finally:
+        isotopo.set_memory_limit(None)
+    assert isotopo.memory_limit() > 1 << 28  # 3/4 of the machine's
+    for bad, error in [("lots", ValueError), (0, ValueError), (-5, ValueError),
+                       ("0%", ValueError), (True, TypeError), (2.5, TypeError)]:
+        with pytest.raises(error):
+            isotopo.set_memory_limit(bad)
+    assert isotopo.genus(v, 0.0).b1 == 1
+
+
 def test_a_truncated_file_is_an_oserror(tmp_path):
     good = tmp_path / "v.nii"
     isotopo.save(good, torus().astype(np.float32))

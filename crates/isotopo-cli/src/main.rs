@@ -17,6 +17,11 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// How large the process may grow: bytes, K/M/G/T (powers of 1024) or a percentage of the
+    /// machine's memory. Past it, a run stops with an error naming what did not fit (exit code
+    /// 2) instead of being killed. Default: 3/4 of the machine's memory (or the container's).
+    #[arg(long, global = true, value_name = "SIZE", value_parser = isotopo::memory::parse_size)]
+    max_memory: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -64,6 +69,7 @@ fn main() -> ExitCode {
     signals::catch_interrupts();
     signals::report_panics();
     let cli = Cli::parse();
+    isotopo::memory::set_limit(cli.max_memory);
     let run = std::panic::catch_unwind(|| match cli.command {
         // How the tests see what a bug would do (there is no other way to make one on purpose).
         _ if std::env::var_os("ISOTOPO_PANIC_FOR_TESTS").is_some() => panic!("a deliberate panic"),

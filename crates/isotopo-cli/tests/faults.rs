@@ -210,3 +210,78 @@ fn two_runs_writing_one_output_do_not_interleave() {
         );
     }
 }
+
+/// A memory limit too small for a run stops it before it is killed: exit code 2, a message
+/// naming what did not fit, the earlier output as it was. Each case meets the limit at another
+/// place: a reader's slices, the planes of inside bits (the whole volume with `--max-slices 0`),
+/// the growth of the loop searches between two handles.
+#[test]
+fn a_memory_limit_too_small_for_the_volume_is_exit_2_naming_what() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noise(dir.path());
+    let input = input.to_str().unwrap();
+    // 512 MiB of zeros that take no room on disk: refused before a byte of it is read.
+    let sparse = dir.path().join("zeros_2048x2048x128_uint8.raw");
+    std::fs::File::create(&sparse)
+        .unwrap()
+        .set_len(2048 * 2048 * 128)
+        .unwrap();
+    let sparse = sparse.to_str().unwrap();
+    let output = dir.path().join("out.nii");
+    std::fs::write(&output, b"the earlier output").unwrap();
+    let out = output.to_str().unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["genus", input, "--iso", "127.5", "--max-memory", "1M"],
+            "not enough memory for 2 slices of 64×64 uint8 samples (reading)",
+        ),
+        (
+            &[
+                "simplify",
+                sparse,
+                "--iso",
+                "0.5",
+                "--tau",
+                "5",
+                "--max-slices",
+                "0",
+            ],
+            "not enough memory for 128 planes of 2048×2048 inside bits",
+        ),
+        (
+            &[
+                "simplify",
+                sparse,
+                "--iso",
+                "0.5",
+                "--tau",
+                "5",
+                "--max-slices",
+                "100",
+            ],
+            "not enough memory for 100 planes of 2048×2048 inside bits",
+        ),
+        (
+            &["analyze", input, "--iso", "127.5", "--max-memory", "30M"],
+            "the process grew to ",
+        ),
+    ];
+    for (args, words) in cases {
+        let mut args = args.to_vec();
+        if args[0] == "simplify" {
+            args.extend(["--max-memory", "20M", "-o", out]);
+        }
+        let (code, _, stderr) = common::isotopo(&args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stderr.contains(words), "{args:?}: {stderr}");
+        assert!(stderr.contains("over the memory limit of "), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+    }
+    assert!(listing(dir.path()).len() == 3, "{:?}", listing(dir.path()));
+    // A size that is not one is refused as such.
+    let (code, _, stderr) =
+        common::isotopo(&["genus", input, "--iso", "1", "--max-memory", "lots"]);
+    assert_eq!(code, 2);
+    assert!(stderr.contains("\"lots\" is not a size"), "{stderr}");
+}

@@ -14,8 +14,8 @@ use std::path::PathBuf;
 use numpy::ndarray::{Array3, ShapeBuilder};
 use numpy::IntoPyArray;
 use pyo3::exceptions::{
-    PyFileNotFoundError, PyKeyboardInterrupt, PyOSError, PyPermissionError, PyRuntimeError,
-    PyValueError,
+    PyFileNotFoundError, PyKeyboardInterrupt, PyMemoryError, PyOSError, PyPermissionError,
+    PyRuntimeError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -67,6 +67,7 @@ fn to_python(e: isotopo::Error, progress: &PyProgress) -> PyErr {
             std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(msg),
             _ => PyOSError::new_err(msg),
         },
+        E::Memory { .. } => PyMemoryError::new_err(msg),
         E::Internal(_) => PyRuntimeError::new_err(format!(
             "internal error (a bug in isotopo; please report it with the volume): {msg}"
         )),
@@ -505,6 +506,36 @@ fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
 }
 
 /// The native half of the `isotopo` package.
+/// Sets the process's memory limit (see `isotopo::memory`): bytes, a size as the command line
+/// takes it ("2G", "50%"), or None for the default.
+#[pyfunction]
+#[pyo3(signature = (limit=None))]
+fn set_memory_limit(limit: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+    let bytes = match limit {
+        None => None,
+        Some(v) if v.is_none() => None,
+        Some(v) => Some(match v.extract::<String>() {
+            Ok(text) => isotopo::memory::parse_size(&text).map_err(PyValueError::new_err)?,
+            Err(_) => match v.extract::<u64>() {
+                Ok(n) if n > 0 => n,
+                _ => {
+                    return Err(PyValueError::new_err(format!(
+                        "the memory limit must be a positive number of bytes, a size such as \"2G\" or \"50%\", or None; got {v}"
+                    )))
+                }
+            },
+        }),
+    };
+    isotopo::memory::set_limit(bytes);
+    Ok(())
+}
+
+/// The memory limit in force, in bytes.
+#[pyfunction]
+fn memory_limit() -> u64 {
+    isotopo::memory::limit()
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
@@ -514,6 +545,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simplify, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(set_memory_limit, m)?)?;
+    m.add_function(wrap_pyfunction!(memory_limit, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
 }

@@ -110,7 +110,7 @@ pub fn compose(
             mender.mend(vol, cell);
         }
         progress.advance(1);
-        progress.check()?;
+        crate::progress::between_steps(progress, "well-composed step")?;
     }
     progress.finish();
     vol.follow_sweep(nw)?;

@@ -36,6 +36,18 @@ pub enum Error {
     Usage(String),
     /// A bug: an internal invariant failed. Reported rather than panicking.
     Internal(String),
+    /// The process would grow past its memory limit ([`crate::memory`]); nothing was written.
+    Memory {
+        /// What needed the memory: an allocation ("the labels of ..."), or the stage running when
+        /// the process grew past the limit ("loops").
+        what: String,
+        /// The allocation's size, or `None` when the process grew past the limit during `what`.
+        needed: Option<u64>,
+        /// The process's resident memory when this was found, in bytes.
+        in_use: u64,
+        /// The limit, in bytes.
+        limit: u64,
+    },
     /// The caller asked to stop ([`crate::progress::Progress::cancelled`]); nothing was written.
     Cancelled,
 }
@@ -98,6 +110,32 @@ impl fmt::Display for Error {
             ),
             Error::Usage(msg) => write!(f, "{msg}"),
             Error::Internal(msg) => write!(f, "internal error (please report): {msg}"),
+            Error::Memory {
+                what,
+                needed,
+                in_use,
+                limit,
+            } => {
+                match needed {
+                    Some(n) => write!(
+                        f,
+                        "not enough memory for {what}: {} more, with {} in use",
+                        human(*n),
+                        human(*in_use)
+                    )?,
+                    None => write!(
+                        f,
+                        "the process grew to {} during the {what}",
+                        human(*in_use)
+                    )?,
+                }
+                write!(
+                    f,
+                    ", over the memory limit of {} (--max-memory, or isotopo.set_memory_limit in \
+                     Python; by default 3/4 of the machine's memory)",
+                    human(*limit)
+                )
+            }
             Error::Cancelled => write!(f, "cancelled"),
         }
     }
@@ -109,5 +147,28 @@ impl std::error::Error for Error {
             Error::Io { source, .. } => Some(source),
             _ => None,
         }
+    }
+}
+
+/// `bytes` as a person reads it: "12.0 MiB", "3.25 GiB".
+fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        _ if bytes >= 1 << 30 => format!("{:.2} GiB", b / (1u64 << 30) as f64),
+        _ if bytes >= 1 << 20 => format!("{:.1} MiB", b / (1u64 << 20) as f64),
+        _ if bytes >= 1 << 10 => format!("{:.1} KiB", b / 1024.0),
+        _ => format!("{bytes} bytes"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn human_sizes() {
+        assert_eq!(human(1000), "1000 bytes");
+        assert_eq!(human(3 << 20), "3.0 MiB");
+        assert_eq!(human(13 << 29), "6.50 GiB");
     }
 }

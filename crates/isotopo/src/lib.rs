@@ -36,7 +36,10 @@
 //!
 //! Progress goes through [`progress::Progress`], which a caller implements (the command line
 //! draws bars); its `cancelled` is asked between slices, planes and handles, and a job then stops
-//! with [`Error::Cancelled`], having written nothing. The library never prints.
+//! with [`Error::Cancelled`], having written nothing. The library never prints. The same
+//! steps check the process's memory against a limit ([`memory`]; by default 3/4 of the
+//! machine's): past it a job stops with [`Error::Memory`], naming what did not fit, rather than
+//! being killed.
 //!
 //! Data flows one way, one module per stage:
 //!
@@ -74,6 +77,7 @@ pub mod error;
 pub mod grid;
 pub mod jobs;
 pub mod loops;
+pub mod memory;
 pub mod mesh;
 pub mod plots;
 pub mod progress;

@@ -347,6 +347,7 @@ pub fn extract(
     let classifier = opts.classifier(&info);
     let flip = info.affine.determinant() < 0.0;
     let mut out = MeshAssembly::new(flip, largest, opts.connectivity);
+    crate::volume::reserve_slices(&info, BATCH + 1, "meshing reads them in batches")?;
     progress.start("mesh", nz as u64 + 1);
     // Planes -1 ..= nz; a batch covers slices z0 .. z1 (lower planes), upper planes z0+1 ..= z1.
     let mut lower = mesh_plane(None, nx, ny, &classifier);
@@ -362,6 +363,7 @@ pub fn extract(
             out.add(sm)?;
             progress.advance(1);
         }
+        crate::progress::between_steps(progress, "meshing")?;
         lower = planes.into_iter().last().expect("a batch has a plane");
         z0 = z1;
     }

@@ -31,6 +31,13 @@ pub trait Progress: Sync {
     }
 }
 
+/// Between two steps of a stage: stops if the caller asked to ([`Progress::check`]) or if the
+/// process has grown past its memory limit during `stage` ([`crate::memory::check`]).
+pub fn between_steps(progress: &dyn Progress, stage: &str) -> Result<()> {
+    progress.check()?;
+    crate::memory::check(stage)
+}
+
 /// Reports nothing.
 pub struct NoProgress;
 

@@ -281,6 +281,14 @@ impl MaskVolume {
         let dims = [info.dims[uvw[0]], info.dims[uvw[1]], info.dims[uvw[2]]];
         let window = window_for(dims, max_slices);
         let out_of_core = window < dims[2];
+        let plane_bytes = PlaneMask::empty(dims[0], dims[1]).bits.len() as u64 * 8;
+        crate::memory::reserve(
+            &format!(
+                "{window} planes of {}×{} inside bits (the planes kept in memory; fewer with --max-slices)",
+                dims[0], dims[1]
+            ),
+            plane_bytes * window as u64,
+        )?;
         let mut vol = if out_of_core {
             MaskVolume::on_disk(dims, Frame::for_axis(axis), window)?
         } else {
@@ -330,7 +338,7 @@ impl MaskVolume {
                 }
             }
             progress.advance(1);
-            progress.check()?;
+            crate::progress::between_steps(progress, "classification of the samples")?;
         }
         progress.finish();
         vol.fractions = fractions;

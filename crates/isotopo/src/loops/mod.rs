@@ -1001,12 +1001,18 @@ pub fn measure_all(
     for ids in order.chunks(batch) {
         vol.follow_sweep(top_slice(&handles[ids[0]]))?;
         let frozen: &MaskVolume = vol;
+        // Why the batch stopped early: cancelled, or past the memory limit.
+        let stop = std::sync::OnceLock::new();
         let measured: Vec<Option<HandleLoops>> = ids
             .par_iter()
             .map_init(
                 || (Graph::new(frozen, table), SliceCache::new(conn)),
                 |(g, cache), &i| {
-                    if progress.cancelled() {
+                    if stop.get().is_some() {
+                        return None;
+                    }
+                    if let Err(e) = crate::progress::between_steps(progress, "loop searches") {
+                        let _ = stop.set(e);
                         return None;
                     }
                     // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
@@ -1019,7 +1025,9 @@ pub fn measure_all(
                 },
             )
             .collect();
-        progress.check()?;
+        if let Some(e) = stop.into_inner() {
+            return Err(e);
+        }
         for (&i, l) in ids.iter().zip(measured) {
             out[i] = l;
         }

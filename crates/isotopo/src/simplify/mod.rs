@@ -563,7 +563,7 @@ impl<'a> Run<'a> {
                 progress.message(&format!("{} removed", self.removed.len()));
                 high = s;
             }
-            progress.check()?;
+            crate::progress::between_steps(progress, "sweep")?;
             if new.is_empty() {
                 continue;
             }

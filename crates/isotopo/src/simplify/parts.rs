@@ -140,20 +140,21 @@ pub(super) fn remove_parts(
     let conn = opts.surface.connectivity;
     if opts.min_component.is_some() || opts.largest {
         progress.start("components", 1);
-        let (comps, labels) = label(vol, Side::solid(conn));
+        let (comps, labels) = label(vol, Side::solid(conn))?;
         let go = components_to_remove(&comps, opts);
         let owner = Owner::new(labels, &go, comps.len());
         remove(vol, Side::solid(conn), owner, opts, original, &mut out);
         progress.finish();
-        progress.check()?;
+        crate::progress::between_steps(progress, "components-and-cavities phase")?;
     }
     if opts.min_cavity.is_some() || opts.fill_cavities {
         progress.start("cavities", 1);
-        let (spaces, labels) = label(vol, Side::space(conn));
+        let (spaces, labels) = label(vol, Side::space(conn))?;
         let go = cavities_to_remove(&spaces, opts);
         let owner = Owner::new(labels, &go, spaces.len());
         remove(vol, Side::space(conn), owner, opts, original, &mut out);
         progress.finish();
+        crate::progress::between_steps(progress, "components-and-cavities phase")?;
     }
     out.after = Some(check_parts(vol, opts, &out)?);
     vol.keep_window(-1, -1)?;
@@ -286,10 +287,15 @@ impl Labels {
 /// is the exterior) in scan order of their first sample, and each sample's part. One pass in
 /// scan order joins each sample to its neighbours already seen (a union-find of provisional
 /// labels), a second gives each sample its part.
-fn label(vol: &MaskVolume, side: Side) -> (Vec<Part>, Labels) {
+fn label(vol: &MaskVolume, side: Side) -> Result<(Vec<Part>, Labels)> {
     let lo = if side.inside { 0 } else { -1 };
     let hi = vol.dims.map(|d| d as i64 - lo);
     let dims = hi.map(|h| h - lo);
+    let samples = (dims[0] * dims[1] * dims[2]) as u64;
+    crate::memory::reserve(
+        "the labels of the components-and-cavities phase (4 bytes a sample)",
+        samples * 4,
+    )?;
     let mut labels = Labels {
         lo,
         dims,
@@ -381,7 +387,7 @@ fn label(vol: &MaskVolume, side: Side) -> (Vec<Part>, Labels) {
             }
         }
     }
-    (parts, labels)
+    Ok((parts, labels))
 }
 
 /// Which of the parts that go (numbered in their order) each sample of the side belongs to; the
@@ -762,8 +768,8 @@ fn chi4(vol: &MaskVolume, conn: Connectivity, cubes: &[[i64; 3]]) -> i64 {
 /// job checks them again with the genus pass, which counts them another way).
 fn check_parts(vol: &MaskVolume, opts: &SimplifyOptions, out: &Parts) -> Result<(u64, u64)> {
     let conn = opts.surface.connectivity;
-    let comps = label(vol, Side::solid(conn)).0;
-    let spaces = label(vol, Side::space(conn)).0;
+    let comps = label(vol, Side::solid(conn))?.0;
+    let spaces = label(vol, Side::space(conn))?.0;
     // With neither option of a kind asked, its list of parts to remove is empty.
     let left = [
         (

@@ -203,7 +203,7 @@ pub(crate) fn write_edited(
         editor.apply(z, nx, &mut slice)?;
         writer.write_slice(&slice)?;
         progress.advance(1);
-        progress.check()?;
+        crate::progress::between_steps(progress, "writing of the output")?;
     }
     progress.finish();
     let info = reader.info().clone();

@@ -652,7 +652,7 @@ fn sweep_level(
         if depth == 0 {
             progress.advance(1);
             progress.message(&format!("{} handles", sweeper.handles.len()));
-            progress.check()?;
+            crate::progress::between_steps(progress, "sweep")?;
         }
     }
     if depth == 0 {

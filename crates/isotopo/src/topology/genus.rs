@@ -471,6 +471,7 @@ pub fn genus(
         other_connectivity: conn.other().number(),
         ..Agreement::default()
     };
+    crate::volume::reserve_slices(&info, BATCH + 1, "the genus pass reads them in batches")?;
     progress.start("genus", nz as u64 + 1);
     // Planes -1 ..= nz with their samples; a batch covers slices z0 .. z0 + BATCH (lower planes).
     let mut lower_plane = PlaneMask::empty(nx, ny);
@@ -537,7 +538,7 @@ pub fn genus(
             agreement.critical.add(survey.critical);
             agreement.samples_at_iso += survey.at_iso;
             progress.advance(1);
-            progress.check()?;
+            crate::progress::between_steps(progress, "genus pass")?;
         }
         lower_plane = planes.pop().unwrap_or_else(|| PlaneMask::empty(nx, ny));
         lower_values = values.pop().flatten();

@@ -67,6 +67,7 @@ impl InMemoryVolume {
     /// Reads every slice of `reader`.
     pub fn from_reader(reader: &mut dyn SliceReader) -> Result<InMemoryVolume> {
         let nz = reader.info().nz();
+        super::reserve_slices(reader.info(), nz, "the whole volume in memory")?;
         let mut slices = Vec::with_capacity(nz);
         for _ in 0..nz {
             let mut s = Samples::new(reader.info().dtype);

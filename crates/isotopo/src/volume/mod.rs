@@ -331,7 +331,22 @@ pub fn open(path: &Path, options: &ReadOptions) -> Result<Box<dyn SliceReader>> 
         Format::Raw => Box::new(raw::open(path, options)?),
         Format::Tiff => Box::new(tiff::open(path, options)?),
     };
+    // A slice, and its bytes as read, are what every reader holds.
+    reserve_slices(reader.info(), 2, "reading")?;
     Ok(reader)
+}
+
+/// Checks the memory limit before `count` slices of `info`'s samples are held at once, for
+/// `why` (the stage that holds them).
+pub(crate) fn reserve_slices(info: &VolumeInfo, count: usize, why: &str) -> Result<()> {
+    let [nx, ny, _] = info.dims;
+    let bytes = (info.slice_len() as u64)
+        .saturating_mul(info.dtype.size() as u64)
+        .saturating_mul(count as u64);
+    crate::memory::reserve(
+        &format!("{count} slices of {nx}×{ny} {} samples ({why})", info.dtype),
+        bytes,
+    )
 }
 
 /// Guesses the format of a file with an unknown extension from its first bytes.
@@ -410,7 +425,7 @@ pub fn convert(
     let mut slice = Samples::new(reader.info().dtype);
     progress.start("convert", reader.info().nz() as u64);
     for _ in 0..reader.info().nz() {
-        progress.check()?;
+        crate::progress::between_steps(progress, "conversion")?;
         reader.read_slice(&mut slice)?;
         writer.write_slice(&slice)?;
         progress.advance(1);
