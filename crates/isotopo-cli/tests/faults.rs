@@ -104,6 +104,68 @@ fn a_bug_is_one_line_and_exit_code_3() {
     );
 }
 
+/// Whether `dir`'s filesystem makes unnamed files (Linux `O_TMPFILE`), where isotopo stages its
+/// outputs when it can.
+fn has_unnamed_files(dir: &Path) -> bool {
+    use std::os::unix::fs::OpenOptionsExt;
+    const O_TMPFILE: i32 = 0o20_000_000 | 0o200_000; // __O_TMPFILE | O_DIRECTORY
+    std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(O_TMPFILE)
+        .open(dir)
+        .is_ok()
+}
+
+/// SIGKILL cannot be caught, so nothing can clean up after it: the output is written to an
+/// unnamed file that gets its name only when complete, and a run killed while writing leaves no
+/// file at all, the earlier output as it was.
+#[test]
+fn sigkill_while_writing_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    if !has_unnamed_files(dir.path()) {
+        eprintln!("skipped: this filesystem has no unnamed files (O_TMPFILE)");
+        return;
+    }
+    // 32 MiB of noise: compressing it takes about a second, from the first slice read.
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let bytes: Vec<u8> = (0..256 * 256 * 512)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 24) as u8
+        })
+        .collect();
+    let input = dir.path().join("noise_256x256x512_uint8.raw");
+    std::fs::write(&input, bytes).unwrap();
+    let output = dir.path().join("out.nii.gz");
+    std::fs::write(&output, b"the earlier output").unwrap();
+    let mut killed_while_running = 0;
+    for wait_ms in [150, 300, 450] {
+        let mut child = convert(&input, &output)
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(wait_ms));
+        if child.try_wait().unwrap().is_none() {
+            killed_while_running += 1;
+        }
+        child.kill().unwrap(); // SIGKILL
+        child.wait().unwrap();
+        assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
+        assert_eq!(
+            listing(dir.path()),
+            ["noise_256x256x512_uint8.raw", "out.nii.gz"],
+            "killed after {wait_ms} ms: a file left behind"
+        );
+    }
+    assert!(
+        killed_while_running > 0,
+        "every run ended before it was killed"
+    );
+}
+
 /// A small tmpfs, unmounted when dropped; `None` where mounting is not allowed (not root).
 struct SmallDisk(tempfile::TempDir);
 

@@ -2,6 +2,7 @@
 //! and a scatter plot of Reeb-loop against cross-loop length, as SVG and PNG.
 
 use crate::error::{Error, Result};
+use crate::volume::{AtomicOutput, Compression};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -55,25 +56,13 @@ pub fn write(
     for ext in ["svg", "png"] {
         let h = dir.join(format!("histogram.{ext}"));
         let data = (title, points, tau);
-        atomically(&h, ext, |p| render(p, ext, Plot::Histogram, data))?;
+        write_plot(&h, ext, Plot::Histogram, data)?;
         out.push(h);
         let s = dir.join(format!("scatter.{ext}"));
-        atomically(&s, ext, |p| render(p, ext, Plot::Scatter, data))?;
+        write_plot(&s, ext, Plot::Scatter, data)?;
         out.push(s);
     }
     Ok(out)
-}
-
-/// Draws into a temporary file beside `path`, then moves it into place.
-fn atomically(path: &Path, ext: &str, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let tmp = tempfile::Builder::new()
-        .prefix(".isotopo-")
-        .suffix(&format!(".{ext}"))
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(path, "creating", e))?;
-    draw(tmp.path())?;
-    crate::volume::persist(tmp, path)
 }
 
 const SIZE: (u32, u32) = (900, 600);
@@ -85,22 +74,43 @@ enum Plot {
     Scatter,
 }
 
-/// Draws `plot` into `path`, as SVG or PNG by `ext`.
-fn render(
+/// Draws `plot` in memory, as SVG or PNG by `ext`, then writes it to `path` atomically.
+fn write_plot(
     path: &Path,
     ext: &str,
     plot: Plot,
     data: (&str, &[PlotPoint], Option<f64>),
 ) -> Result<()> {
-    if ext == "svg" {
-        let root = SVGBackend::new(path, SIZE).into_drawing_area();
-        draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
-        root.present().map_err(|e| plot_err(path, e))
+    let bytes = if ext == "svg" {
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+            draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
+            root.present().map_err(|e| plot_err(path, e))?;
+        }
+        svg.into_bytes()
     } else {
-        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-        draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
-        root.present().map_err(|e| plot_err(path, e))
-    }
+        let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
+            draw(&root, plot, data).map_err(|e| plot_err(path, e))?;
+            root.present().map_err(|e| plot_err(path, e))?;
+        }
+        encode_png(&rgb).map_err(|e| plot_err(path, e))?
+    };
+    let mut out = AtomicOutput::create(path, Compression::None)?;
+    out.write_all(&bytes)?;
+    out.commit()
+}
+
+/// An RGB image of [`SIZE`] as PNG.
+fn encode_png(rgb: &[u8]) -> std::result::Result<Vec<u8>, png::EncodingError> {
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, SIZE.0, SIZE.1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(rgb)?;
+    Ok(bytes)
 }
 
 fn draw<DB: DrawingBackend>(

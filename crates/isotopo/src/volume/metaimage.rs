@@ -377,9 +377,9 @@ pub(crate) struct MetaWriter {
     detached: bool,
     compressed: bool,
     endian: Endian,
-    /// Attached + compressed: the compressed data is staged here, then appended after the header
-    /// (which must state its size).
-    staged: Option<tempfile::NamedTempFile>,
+    /// Attached + compressed: the samples' output is only a stage for the compressed data,
+    /// appended after the header (which must state its size).
+    staged: bool,
 }
 
 pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<MetaWriter> {
@@ -415,26 +415,14 @@ pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<MetaWriter> {
                     Compression::None
                 },
             )?,
-            None,
+            false,
         )
     } else if compressed {
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let staged = tempfile::Builder::new()
-            .prefix(".isotopo-")
-            .tempfile_in(dir)
-            .map_err(|e| Error::io(path, "creating", e))?;
-        let staged_path = staged.path().with_extension("zdata");
-        (
-            AtomicOutput::create(&staged_path, Compression::Zlib)?,
-            Some(staged),
-        )
+        (AtomicOutput::create(path, Compression::Zlib)?, true)
     } else {
         let mut out = AtomicOutput::create(path, Compression::None)?;
         out.write_all(header_text(&output_fields(source, false, "LOCAL")).as_bytes())?;
-        (out, None)
+        (out, false)
     };
     Ok(MetaWriter {
         samples: SampleWriter::new(out, endian, source),
@@ -458,6 +446,32 @@ impl SliceWriter for MetaWriter {
         } else {
             src.endian = Endian::Little;
         }
+        if self.staged {
+            // The header with the compressed size, then the staged data.
+            let mut data = self.samples.out.into_bytes_written()?;
+            let size = data
+                .metadata()
+                .map_err(|e| Error::io(&self.path, "writing", e))?
+                .len();
+            let mut fields = output_fields(&src, true, "LOCAL");
+            fields.insert(
+                fields.len() - 1,
+                ("CompressedDataSize".into(), size.to_string()),
+            );
+            let mut out = AtomicOutput::create(&self.path, Compression::None)?;
+            out.write_all(header_text(&fields).as_bytes())?;
+            let mut buf = vec![0u8; 1 << 20];
+            loop {
+                let n = data
+                    .read(&mut buf)
+                    .map_err(|e| Error::io(&self.path, "writing", e))?;
+                if n == 0 {
+                    break;
+                }
+                out.write_all(&buf[..n])?;
+            }
+            return out.commit();
+        }
         let data_path = self.samples.out.path().to_path_buf();
         self.samples.out.commit()?;
         if self.detached {
@@ -479,35 +493,6 @@ impl SliceWriter for MetaWriter {
             let mut h = AtomicOutput::create(&self.path, Compression::None)?;
             h.write_all(header_text(&fields).as_bytes())?;
             h.commit()?;
-        } else if self.staged.is_some() {
-            // Header with the compressed size, then the staged data.
-            let result = (|| {
-                let size = std::fs::metadata(&data_path)
-                    .map_err(|e| Error::io(&data_path, "reading", e))?
-                    .len();
-                let mut fields = output_fields(&src, true, "LOCAL");
-                fields.insert(
-                    fields.len() - 1,
-                    ("CompressedDataSize".into(), size.to_string()),
-                );
-                let mut out = AtomicOutput::create(&self.path, Compression::None)?;
-                out.write_all(header_text(&fields).as_bytes())?;
-                let mut f = std::fs::File::open(&data_path)
-                    .map_err(|e| Error::io(&data_path, "reading", e))?;
-                let mut buf = vec![0u8; 1 << 20];
-                loop {
-                    let n = f
-                        .read(&mut buf)
-                        .map_err(|e| Error::io(&data_path, "reading", e))?;
-                    if n == 0 {
-                        break;
-                    }
-                    out.write_all(&buf[..n])?;
-                }
-                out.commit()
-            })();
-            let _ = std::fs::remove_file(&data_path);
-            result?;
         }
         Ok(())
     }

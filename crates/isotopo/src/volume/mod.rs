@@ -33,7 +33,6 @@ mod tiff;
 pub use dtype::{DType, Endian, Sample, Samples, Threshold};
 pub use geometry::{Affine, BBox};
 pub use memory::InMemoryVolume;
-pub(crate) use stream::persist;
 pub use stream::{check_output_path, AtomicOutput};
 
 use crate::error::{Error, Result};

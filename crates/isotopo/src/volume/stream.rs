@@ -317,40 +317,145 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// A file being written: bytes go to a temporary file beside the target, which replaces the
+/// A file being written that no folder lists yet, in the folder of the file it will become.
+///
+/// On Linux it is an unnamed file (`O_TMPFILE`), given a name only when complete
+/// ([`Staged::persist`]): whatever stops the process before then, a SIGKILL or a power cut
+/// included, leaves nothing behind. Where the filesystem has no unnamed files (or elsewhere than
+/// Linux), a hidden `.isotopo-XXXXXX.part` beside the target stands in, removed when dropped (but
+/// left by a SIGKILL).
+pub(crate) struct Staged {
+    file: File,
+    /// The stand-in's name, when the file has one.
+    named: Option<tempfile::TempPath>,
+}
+
+impl Staged {
+    /// A new, empty staged file in the folder of `target`.
+    pub(crate) fn beside(target: &Path) -> Result<Staged> {
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        #[cfg(target_os = "linux")]
+        if let Some(file) = unnamed_in(dir) {
+            return Ok(Staged { file, named: None });
+        }
+        let tmp = tempfile::Builder::new()
+            .prefix(".isotopo-")
+            .suffix(".part")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(target, "creating", e))?;
+        let (file, path) = tmp.into_parts();
+        Ok(Staged {
+            file,
+            named: Some(path),
+        })
+    }
+
+    /// The open file, to write to (and seek in, and read back).
+    pub(crate) fn file(&self) -> &File {
+        &self.file
+    }
+
+    /// Gives the complete file its name `path` (replacing any file there), synced to disk first,
+    /// readable by all (a staged file is its owner's only).
+    pub(crate) fn persist(self, path: &Path) -> Result<()> {
+        let err = |action, e: io::Error| Error::io(path, action, e);
+        self.file.sync_all().map_err(|e| err("writing", e))?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = self
+                .file
+                .set_permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        match self.named {
+            Some(named) => named
+                .persist(path)
+                .map_err(|e| err("moving into place", e.error)),
+            #[cfg(target_os = "linux")]
+            None => link_into_place(&self.file, path).map_err(|e| err("moving into place", e)),
+            #[cfg(not(target_os = "linux"))]
+            None => unreachable!("unnamed files are made on Linux only"),
+        }
+    }
+}
+
+/// An unnamed file in `dir` (`O_TMPFILE`), or `None` where the filesystem has none.
+#[cfg(target_os = "linux")]
+fn unnamed_in(dir: &Path) -> Option<File> {
+    use rustix::fs::{openat, Mode, OFlags, CWD};
+    let flags = OFlags::RDWR | OFlags::TMPFILE | OFlags::CLOEXEC;
+    openat(CWD, dir, flags, Mode::from_raw_mode(0o600))
+        .ok()
+        .map(File::from)
+}
+
+/// Names an unnamed file `path`: linked under a fresh hidden name in `path`'s folder, then
+/// renamed over `path` (a link cannot replace a file). Only the instant between the two steps
+/// can leave the hidden name behind.
+#[cfg(target_os = "linux")]
+fn link_into_place(file: &File, path: &Path) -> io::Result<()> {
+    use rustix::fs::{linkat, AtFlags, CWD};
+    use std::os::fd::AsRawFd;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let fd = format!("/proc/self/fd/{}", file.as_raw_fd());
+    let mut attempt = 0u32;
+    let hidden = loop {
+        let hidden = dir.join(format!(".isotopo-{}.part", hidden_suffix(attempt)));
+        match linkat(CWD, fd.as_str(), CWD, &hidden, AtFlags::SYMLINK_FOLLOW) {
+            Ok(()) => break hidden,
+            Err(e) if e == rustix::io::Errno::EXIST && attempt < 100 => attempt += 1,
+            Err(e) => return Err(e.into()),
+        }
+    };
+    std::fs::rename(&hidden, path).inspect_err(|_| {
+        let _ = std::fs::remove_file(&hidden);
+    })
+}
+
+/// A name no other run picks at the same time: the process, the time, a count.
+#[cfg(target_os = "linux")]
+fn hidden_suffix(attempt: u32) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    format!("{}-{nanos:09}-{attempt}", std::process::id())
+}
+
+/// A file being written: bytes go to a [`Staged`] file beside the target, which becomes the
 /// target only on [`AtomicOutput::commit`]. Dropped without commit, it leaves nothing behind.
 pub struct AtomicOutput {
     path: PathBuf,
     sink: Sink,
+    /// The staged file's name, if it has one (see [`Staged`]).
+    named: Option<tempfile::TempPath>,
 }
 
 enum Sink {
     /// Only while switching from plain to compressed.
     Switching,
-    Plain(BufWriter<tempfile::NamedTempFile>),
-    Gzip(flate2::write::GzEncoder<BufWriter<tempfile::NamedTempFile>>),
-    Zlib(flate2::write::ZlibEncoder<BufWriter<tempfile::NamedTempFile>>),
+    Plain(BufWriter<File>),
+    Gzip(flate2::write::GzEncoder<BufWriter<File>>),
+    Zlib(flate2::write::ZlibEncoder<BufWriter<File>>),
 }
 
 /// gzip level for written files: 6 is zlib's default and what most tools use.
 const GZIP_LEVEL: u32 = 6;
 
 impl AtomicOutput {
-    /// Starts writing `path`: creates a temporary file in its folder, whose content is compressed
-    /// from the first byte as `compression` says.
+    /// Starts writing `path`: stages a file in its folder, whose content is compressed from the
+    /// first byte as `compression` says.
     pub fn create(path: &Path, compression: Compression) -> Result<AtomicOutput> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let tmp = tempfile::Builder::new()
-            .prefix(".isotopo-")
-            .suffix(".part")
-            .tempfile_in(dir)
-            .map_err(|e| Error::io(path, "creating", e))?;
+        let staged = Staged::beside(path)?;
         let mut out = AtomicOutput {
             path: path.to_path_buf(),
-            sink: Sink::Plain(BufWriter::with_capacity(IO_BUFFER, tmp)),
+            sink: Sink::Plain(BufWriter::with_capacity(IO_BUFFER, staged.file)),
+            named: staged.named,
         };
         out.begin_compression(compression);
         Ok(out)
@@ -374,7 +479,7 @@ impl AtomicOutput {
         &self.path
     }
 
-    /// Appends `bytes` to the temporary file (through the compressor, if compression has begun).
+    /// Appends `bytes` to the staged file (through the compressor, if compression has begun).
     pub fn write_all(&mut self, bytes: &[u8]) -> Result<()> {
         let r = match &mut self.sink {
             Sink::Plain(w) => w.write_all(bytes),
@@ -387,34 +492,35 @@ impl AtomicOutput {
 
     /// Completes compression, flushes, and moves the file into place.
     pub fn commit(self) -> Result<()> {
-        let path = self.path;
-        let err = |e: io::Error| Error::io(&path, "writing", e);
+        let path = self.path.clone();
+        self.into_staged()?.persist(&path)
+    }
+
+    /// Completes compression and flushes, without moving the file into place: the bytes
+    /// written, to read back (from the start) and copy elsewhere. The file is gone once closed.
+    pub(crate) fn into_bytes_written(self) -> Result<File> {
+        let path = self.path.clone();
+        let staged = self.into_staged()?;
+        let mut file = staged.file;
+        file.seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io(&path, "reading", e))?;
+        Ok(file)
+    }
+
+    fn into_staged(self) -> Result<Staged> {
+        let err = |e: io::Error| Error::io(&self.path, "writing", e);
         let buffered = match self.sink {
             Sink::Plain(w) => w,
             Sink::Gzip(w) => w.finish().map_err(err)?,
             Sink::Zlib(w) => w.finish().map_err(err)?,
             Sink::Switching => unreachable!("sink left switching"),
         };
-        let tmp = buffered.into_inner().map_err(|e| err(e.into_error()))?;
-        persist(tmp, &path)
+        let file = buffered.into_inner().map_err(|e| err(e.into_error()))?;
+        Ok(Staged {
+            file,
+            named: self.named,
+        })
     }
-}
-
-/// Moves a finished temporary file into place at `path`: synced to disk first, and readable by
-/// all (a temporary file is created readable by its owner only).
-pub(crate) fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
-    let err = |e: io::Error| Error::io(path, "writing", e);
-    tmp.as_file().sync_all().map_err(err)?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let _ = tmp
-            .as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644));
-    }
-    tmp.persist(path)
-        .map_err(|e| Error::io(path, "moving into place", e.error))?;
-    Ok(())
 }
 
 /// Output of a format whose header is written before the samples: one atomic file, header bytes

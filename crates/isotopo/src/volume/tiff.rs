@@ -242,22 +242,17 @@ impl SliceReader for TiffReader {
 pub(crate) struct TiffWriter {
     path: std::path::PathBuf,
     /// The file that becomes the output; the encoder writes through its own handle to it.
-    tmp: tempfile::NamedTempFile,
+    tmp: super::stream::Staged,
     encoder: tiff::encoder::TiffEncoder<File>,
     dims: [usize; 3],
 }
 
 pub(crate) fn create(path: &Path, source: &VolumeInfo) -> Result<TiffWriter> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp = tempfile::Builder::new()
-        .prefix(".isotopo-")
-        .suffix(".part")
-        .tempfile_in(dir)
+    let tmp = super::stream::Staged::beside(path)?;
+    let handle = tmp
+        .file()
+        .try_clone()
         .map_err(|e| Error::io(path, "creating", e))?;
-    let handle = tmp.reopen().map_err(|e| Error::io(path, "creating", e))?;
     let encoder = tiff::encoder::TiffEncoder::new(handle)
         .map_err(|e| Error::io(path, "writing", std::io::Error::other(e.to_string())))?;
     Ok(TiffWriter {
@@ -289,6 +284,6 @@ impl SliceWriter for TiffWriter {
     fn finish(self: Box<Self>, _source: &VolumeInfo) -> Result<()> {
         // The encoder writes unbuffered: every page is in the file already.
         drop(self.encoder);
-        super::stream::persist(self.tmp, &self.path)
+        self.tmp.persist(&self.path)
     }
 }
