@@ -8,7 +8,5 @@ mod fuzz_checks;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let dir = std::env::temp_dir().join(format!("isotopo-fuzz-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    fuzz_checks::read_volume(data, &dir);
+    fuzz_checks::read_volume(data, &fuzz_checks::scratch_dir());
 });

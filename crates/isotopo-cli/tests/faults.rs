@@ -117,17 +117,9 @@ fn has_unnamed_files(dir: &Path) -> bool {
         .is_ok()
 }
 
-/// SIGKILL cannot be caught, so nothing can clean up after it: the output is written to an
-/// unnamed file that gets its name only when complete, and a run killed while writing leaves no
-/// file at all, the earlier output as it was.
-#[test]
-fn sigkill_while_writing_leaves_nothing_behind() {
-    let dir = tempfile::tempdir().unwrap();
-    if !has_unnamed_files(dir.path()) {
-        eprintln!("skipped: this filesystem has no unnamed files (O_TMPFILE)");
-        return;
-    }
-    // 32 MiB of noise: compressing it takes about a second, from the first slice read.
+/// 32 MiB of noise (256×256×512 uint8): converting it to `.nii.gz` takes about a second, and
+/// writes from the first slice read.
+fn big_noise(dir: &Path) -> std::path::PathBuf {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let bytes: Vec<u8> = (0..256 * 256 * 512)
         .map(|_| {
@@ -137,33 +129,87 @@ fn sigkill_while_writing_leaves_nothing_behind() {
             (state >> 24) as u8
         })
         .collect();
-    let input = dir.path().join("noise_256x256x512_uint8.raw");
+    let input = dir.join("noise_256x256x512_uint8.raw");
     std::fs::write(&input, bytes).unwrap();
+    input
+}
+
+/// A signal while the output is written: SIGINT and SIGTERM stop the run (exit 130), and
+/// SIGKILL, which nothing can catch, leaves no file either: the output is written to an unnamed
+/// file that gets its name only when complete. The earlier output stays as it was.
+#[test]
+fn a_signal_while_writing_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    if !has_unnamed_files(dir.path()) {
+        eprintln!("skipped: this filesystem has no unnamed files (O_TMPFILE)");
+        return;
+    }
+    let input = big_noise(dir.path());
     let output = dir.path().join("out.nii.gz");
     std::fs::write(&output, b"the earlier output").unwrap();
     let mut killed_while_running = 0;
-    for wait_ms in [150, 300, 450] {
+    for (signal, wait_ms) in [
+        ("-KILL", 150),
+        ("-KILL", 300),
+        ("-KILL", 450),
+        ("-INT", 300),
+        ("-TERM", 300),
+    ] {
         let mut child = convert(&input, &output)
-            .stderr(Stdio::null())
+            .stderr(Stdio::piped())
             .spawn()
             .unwrap();
         std::thread::sleep(Duration::from_millis(wait_ms));
-        if child.try_wait().unwrap().is_none() {
-            killed_while_running += 1;
+        // The run may have ended already (a fast machine): then its output is new.
+        if child.try_wait().unwrap().is_some() {
+            std::fs::write(&output, b"the earlier output").unwrap();
+            continue;
         }
-        child.kill().unwrap(); // SIGKILL
-        child.wait().unwrap();
+        let kill = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let out = child.wait_with_output().unwrap();
+        killed_while_running += 1;
+        if signal != "-KILL" {
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(130), "{signal}: {stderr}");
+        }
         assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
         assert_eq!(
             listing(dir.path()),
             ["noise_256x256x512_uint8.raw", "out.nii.gz"],
-            "killed after {wait_ms} ms: a file left behind"
+            "{signal} after {wait_ms} ms: a file left behind"
         );
     }
     assert!(
-        killed_while_running > 0,
-        "every run ended before it was killed"
+        killed_while_running >= 3,
+        "most runs ended before the signal"
     );
+}
+
+/// The output's folder removed while the output is written: exit code 2 saying so, nothing
+/// recreated.
+#[test]
+fn the_output_folder_vanishing_while_writing_is_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = big_noise(dir.path());
+    let folder = dir.path().join("results");
+    std::fs::create_dir(&folder).unwrap();
+    let child = convert(&input, &folder.join("out.nii.gz"))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    // With the output still unnamed the folder looks empty, so it can go at once.
+    std::fs::remove_dir_all(&folder).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("out.nii.gz: error"), "{stderr}");
+    assert!(stderr.contains("No such file or directory"), "{stderr}");
+    assert_eq!(listing(dir.path()), ["noise_256x256x512_uint8.raw"]);
 }
 
 /// A small tmpfs, unmounted when dropped; `None` where mounting is not allowed (not root).

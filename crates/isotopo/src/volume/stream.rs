@@ -371,11 +371,9 @@ impl Staged {
                 .set_permissions(std::fs::Permissions::from_mode(0o644));
         }
         match self.named {
-            Some(named) => named
-                .persist(path)
-                .map_err(|e| err("moving into place", e.error)),
+            Some(named) => named.persist(path).map_err(|e| err("placing", e.error)),
             #[cfg(target_os = "linux")]
-            None => link_into_place(&self.file, path).map_err(|e| err("moving into place", e)),
+            None => link_into_place(&self.file, path).map_err(|e| err("placing", e)),
             #[cfg(not(target_os = "linux"))]
             None => unreachable!("unnamed files are made on Linux only"),
         }

@@ -15,15 +15,49 @@ pub const EXTENSIONS: [&str; 10] = [
     "nii", "nii.gz", "nrrd", "nhdr", "mgh", "mgz", "mha", "npy", "tif", "raw",
 ];
 
+/// Each format's reader, for the per-format targets (`read_nifti`, …): its name and the
+/// extensions its first byte picks from (in [`EXTENSIONS`]' order, so the seeds of
+/// `read_volume` serve unchanged). The detached headers' data files (`.nhdr`, `.mhd`) are
+/// named by the header, so a mutated one mostly points nowhere: a clear error too.
+pub const FORMATS: [(&str, &[&str]); 7] = [
+    ("nifti", &["nii", "nii.gz"]),
+    ("nrrd", &["nrrd", "nhdr"]),
+    ("mgh", &["mgh", "mgz"]),
+    ("metaimage", &["mha", "mhd"]),
+    ("npy", &["npy"]),
+    ("tiff", &["tif"]),
+    ("raw", &["raw"]),
+];
+
 /// Every reader on arbitrary bytes: a clear error or a volume, never a panic, never an
 /// allocation the file cannot back. The first byte picks the format (by the file's extension);
 /// for the gzip formats the rest is compressed first, so mutations reach the header inside.
 /// The file is written in `dir`.
 pub fn read_volume(data: &[u8], dir: &Path) {
+    read_as(&EXTENSIONS, data, dir);
+}
+
+/// [`read_volume`] for one format of [`FORMATS`].
+pub fn read_format(format: &str, data: &[u8], dir: &Path) {
+    let (_, extensions) = FORMATS
+        .iter()
+        .find(|(name, _)| *name == format)
+        .unwrap_or_else(|| panic!("no format {format}"));
+    read_as(extensions, data, dir);
+}
+
+/// A folder of this process's own for the files a read target writes.
+pub fn scratch_dir() -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("isotopo-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn read_as(extensions: &[&str], data: &[u8], dir: &Path) {
     let Some((&pick, bytes)) = data.split_first() else {
         return;
     };
-    let ext = EXTENSIONS[pick as usize % EXTENSIONS.len()];
+    let ext = extensions[pick as usize % extensions.len()];
     let path = dir.join(format!("v.{ext}"));
     let content = if ext.ends_with("gz") {
         let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
