@@ -425,7 +425,8 @@ def test_a_memory_limit_too_small_is_a_memoryerror():
     try:
         isotopo.set_memory_limit("1M")  # below what the interpreter already holds
         assert isotopo.memory_limit() == 1 << 20
-        for call in (lambda: isotopo.genus(v, 0.0), lambda: isotopo.simplify(v, 0.0, 5)):
+        for call in (lambda: isotopo.genus(v, 0.0), lambda: isotopo.simplify(v, 0.0, 5),
+                     lambda: isotopo.load(SAMPLE)):
             with pytest.raises(MemoryError, match="not enough memory for .*limit of 1.0 MiB"):
                 call()
         isotopo.set_memory_limit(3 << 30)

@@ -386,7 +386,15 @@ fn load(
     let p = &progress;
     let volume = run(py, p, move || {
         let mut reader = isotopo::volume::open(&path, &read)?;
-        let mut slices = Vec::with_capacity(reader.info().nz());
+        // The slices, then the array they are copied into.
+        let nz = reader.info().nz();
+        // Scaled values become float32 (float64 from 32-bit integers): up to 8 bytes a sample.
+        let copy = match reader.info().scaling.is_identity() {
+            true => 1,
+            false => 8usize.div_ceil(reader.info().dtype.size()),
+        };
+        isotopo::volume::reserve_slices(reader.info(), (1 + copy) * nz, "loading into an array")?;
+        let mut slices = Vec::with_capacity(nz);
         for _ in 0..reader.info().nz() {
             p.check()?;
             let mut s = Samples::new(reader.info().dtype);
@@ -505,7 +513,6 @@ fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
     })
 }
 
-/// The native half of the `isotopo` package.
 /// Sets the process's memory limit (see `isotopo::memory`): bytes, a size as the command line
 /// takes it ("2G", "50%"), or None for the default.
 #[pyfunction]
@@ -536,6 +543,7 @@ fn memory_limit() -> u64 {
     isotopo::memory::limit()
 }
 
+/// The native half of the `isotopo` package.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -132,7 +132,7 @@ impl fmt::Display for Error {
                 write!(
                     f,
                     ", over the memory limit of {} (--max-memory, or isotopo.set_memory_limit in \
-                     Python; by default 3/4 of the machine's memory)",
+                     Python; by default 3/4 of the memory this process can have)",
                     human(*limit)
                 )
             }

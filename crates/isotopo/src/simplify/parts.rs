@@ -323,6 +323,8 @@ fn label(vol: &MaskVolume, side: Side) -> Result<(Vec<Part>, Labels)> {
     let mut uf = UnionFind::new(0);
     let mut i = 0;
     for z in lo..hi[2] {
+        // The provisional labels' union-find grows with the parts met.
+        crate::memory::check("components-and-cavities phase")?;
         let plane = vol.plane_once(z);
         for y in lo..hi[1] {
             for x in lo..hi[0] {

@@ -335,9 +335,9 @@ pub fn open(path: &Path, options: &ReadOptions) -> Result<Box<dyn SliceReader>> 
     Ok(reader)
 }
 
-/// Checks the memory limit before `count` slices of `info`'s samples are held at once, for
-/// `why` (the stage that holds them).
-pub(crate) fn reserve_slices(info: &VolumeInfo, count: usize, why: &str) -> Result<()> {
+/// Checks the memory limit ([`crate::memory::reserve`]) before `count` slices of `info`'s
+/// samples are held at once, for `why` (the stage that holds them).
+pub fn reserve_slices(info: &VolumeInfo, count: usize, why: &str) -> Result<()> {
     let [nx, ny, _] = info.dims;
     let bytes = (info.slice_len() as u64)
         .saturating_mul(info.dtype.size() as u64)

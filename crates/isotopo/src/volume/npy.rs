@@ -248,6 +248,12 @@ impl COrderReader {
         let s = self.info.dtype.size();
         let per_slice = nx * ny * s;
         let b = (BLOCK_BYTES / per_slice.max(1)).clamp(1, nz - z0);
+        if self.block.len() < nx * ny * b * s {
+            crate::memory::reserve(
+                "a block of slices of a C-ordered .npy (read across its layout)",
+                (nx * ny * b * s - self.block.len()) as u64,
+            )?;
+        }
         self.block.resize(nx * ny * b * s, 0);
         for xy in 0..nx * ny {
             let at = self.offset + ((xy * nz + z0) * s) as u64;

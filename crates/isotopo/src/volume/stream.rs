@@ -320,30 +320,41 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// A file being written that no folder lists yet, in the folder of the file it will become.
 ///
 /// On Linux it is an unnamed file (`O_TMPFILE`), given a name only when complete
-/// ([`Staged::persist`]): whatever stops the process before then, a SIGKILL or a power cut
-/// included, leaves nothing behind. Where the filesystem has no unnamed files (or elsewhere than
-/// Linux), a hidden `.isotopo-XXXXXX.part` beside the target stands in, removed when dropped (but
-/// left by a SIGKILL).
+/// ([`Staged::persist`]): a run stopped before then, by SIGKILL too, leaves nothing behind (only
+/// the instant between linking and renaming it can leave a hidden name). Where the filesystem has
+/// no unnamed files, without `/proc` (needed to link one), elsewhere than Linux, or with
+/// `ISOTOPO_NAMED_STAGING` set, a hidden `.isotopo-XXXXXX.part` beside the target stands in,
+/// removed when dropped (but left by a SIGKILL).
 pub(crate) struct Staged {
     file: File,
     /// The stand-in's name, when the file has one.
     named: Option<tempfile::TempPath>,
 }
 
+/// The folder a file at `path` goes in.
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
 impl Staged {
-    /// A new, empty staged file in the folder of `target`.
+    /// A new, empty staged file in the folder of `target`, with the permissions a new file gets
+    /// (0666 less the umask).
     pub(crate) fn beside(target: &Path) -> Result<Staged> {
-        let dir = match target.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let dir = folder_of(target);
         #[cfg(target_os = "linux")]
-        if let Some(file) = unnamed_in(dir) {
-            return Ok(Staged { file, named: None });
+        if std::env::var_os("ISOTOPO_NAMED_STAGING").is_none() {
+            if let Some(file) = unnamed_in(dir) {
+                return Ok(Staged { file, named: None });
+            }
         }
-        let tmp = tempfile::Builder::new()
-            .prefix(".isotopo-")
-            .suffix(".part")
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".isotopo-").suffix(".part");
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let tmp = builder
             .tempfile_in(dir)
             .map_err(|e| Error::io(target, "creating", e))?;
         let (file, path) = tmp.into_parts();
@@ -358,34 +369,37 @@ impl Staged {
         &self.file
     }
 
-    /// Gives the complete file its name `path` (replacing any file there), synced to disk first,
-    /// readable by all (a staged file is its owner's only).
+    /// Gives the complete file its name `path` (replacing any file there), synced to disk
+    /// first, and the folder after, so the name survives a power cut.
     pub(crate) fn persist(self, path: &Path) -> Result<()> {
         let err = |action, e: io::Error| Error::io(path, action, e);
         self.file.sync_all().map_err(|e| err("writing", e))?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let _ = self
-                .file
-                .set_permissions(std::fs::Permissions::from_mode(0o644));
-        }
         match self.named {
-            Some(named) => named.persist(path).map_err(|e| err("placing", e.error)),
+            Some(named) => named.persist(path).map_err(|e| err("placing", e.error))?,
             #[cfg(target_os = "linux")]
-            None => link_into_place(&self.file, path).map_err(|e| err("placing", e)),
+            None => link_into_place(&self.file, path).map_err(|e| err("placing", e))?,
             #[cfg(not(target_os = "linux"))]
             None => unreachable!("unnamed files are made on Linux only"),
-        }
+        };
+        // A folder can be opened and synced on Unix only; elsewhere the rename is the end.
+        #[cfg(unix)]
+        File::open(folder_of(path))
+            .and_then(|d| d.sync_all())
+            .map_err(|e| err("placing", e))?;
+        Ok(())
     }
 }
 
-/// An unnamed file in `dir` (`O_TMPFILE`), or `None` where the filesystem has none.
+/// An unnamed file in `dir` (`O_TMPFILE`), or `None` where the filesystem has none or `/proc`
+/// is missing (an unnamed file is linked through `/proc/self/fd`).
 #[cfg(target_os = "linux")]
 fn unnamed_in(dir: &Path) -> Option<File> {
     use rustix::fs::{openat, Mode, OFlags, CWD};
+    if !Path::new("/proc/self/fd").is_dir() {
+        return None;
+    }
     let flags = OFlags::RDWR | OFlags::TMPFILE | OFlags::CLOEXEC;
-    openat(CWD, dir, flags, Mode::from_raw_mode(0o600))
+    openat(CWD, dir, flags, Mode::from_raw_mode(0o666))
         .ok()
         .map(File::from)
 }
@@ -397,14 +411,11 @@ fn unnamed_in(dir: &Path) -> Option<File> {
 fn link_into_place(file: &File, path: &Path) -> io::Result<()> {
     use rustix::fs::{linkat, AtFlags, CWD};
     use std::os::fd::AsRawFd;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
     let fd = format!("/proc/self/fd/{}", file.as_raw_fd());
     let mut attempt = 0u32;
     let hidden = loop {
-        let hidden = dir.join(format!(".isotopo-{}.part", hidden_suffix(attempt)));
+        let name = format!(".isotopo-{}.part", hidden_suffix(attempt));
+        let hidden = folder_of(path).join(name);
         match linkat(CWD, fd.as_str(), CWD, &hidden, AtFlags::SYMLINK_FOLLOW) {
             Ok(()) => break hidden,
             Err(e) if e == rustix::io::Errno::EXIST && attempt < 100 => attempt += 1,
