@@ -352,17 +352,19 @@ fn header_bytes(
     if (bytes.len() as u64) >= vox_offset {
         bytes.truncate(vox_offset as usize);
     } else {
-        let want = vox_offset as usize - bytes.len();
-        let mut rest = vec![0u8; want];
-        let got = read_up_to(input, &mut rest).map_err(|e| gz_error(path, gz, e))?;
-        if got < want {
+        // Read, not allocated from the header: the buffer grows only as far as the file goes.
+        let want = vox_offset - bytes.len() as u64;
+        input
+            .take(want)
+            .read_to_end(&mut bytes)
+            .map_err(|e| gz_error(path, gz, e))?;
+        if (bytes.len() as u64) < vox_offset {
             return Err(Error::input(
                 path,
                 format!("the file ends before vox_offset {vox_offset}"),
                 "sample data after the header",
             ));
         }
-        bytes.extend_from_slice(&rest);
     }
     Ok(bytes)
 }
