@@ -436,7 +436,7 @@ fn hidden_suffix(attempt: u32) -> String {
     format!("{}-{nanos:09}-{attempt}", std::process::id())
 }
 
-/// A file being written: bytes go to a [`Staged`] file beside the target, which becomes the
+/// A file being written: bytes go to an unnamed staged file beside the target, which becomes the
 /// target only on [`AtomicOutput::commit`]. Dropped without commit, it leaves nothing behind.
 pub struct AtomicOutput {
     path: PathBuf,
