@@ -8,11 +8,11 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Uniform noise, 64³ uint8 (dims and type from the name): at 127.5 its tens of thousands of
-/// handles keep `simplify --tau inf` busy for seconds.
-fn noise(dir: &Path) -> std::path::PathBuf {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let bytes: Vec<u8> = (0..64 * 64 * 64)
+/// Uniform noise, uint8, in `dir` under a name that gives its dims and type (xorshift from
+/// `seed`).
+fn noise_file(dir: &Path, [nx, ny, nz]: [usize; 3], seed: u64) -> std::path::PathBuf {
+    let mut state = seed;
+    let bytes: Vec<u8> = (0..nx * ny * nz)
         .map(|_| {
             state ^= state << 13;
             state ^= state >> 7;
@@ -20,9 +20,15 @@ fn noise(dir: &Path) -> std::path::PathBuf {
             (state >> 32) as u8
         })
         .collect();
-    let path = dir.join("noise_64x64x64_uint8.raw");
+    let path = dir.join(format!("noise_{nx}x{ny}x{nz}_uint8.raw"));
     std::fs::write(&path, bytes).unwrap();
     path
+}
+
+/// 64³ of noise: at 127.5 its tens of thousands of handles keep `simplify --tau inf` busy for
+/// seconds.
+fn noise(dir: &Path) -> std::path::PathBuf {
+    noise_file(dir, [64, 64, 64], 0x2545_f491_4f6c_dd1d)
 }
 
 fn interrupted_by(signal: &str) {
@@ -120,18 +126,7 @@ fn has_unnamed_files(dir: &Path) -> bool {
 /// 32 MiB of noise (256×256×512 uint8): converting it to `.nii.gz` takes about a second, and
 /// writes from the first slice read.
 fn big_noise(dir: &Path) -> std::path::PathBuf {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let bytes: Vec<u8> = (0..256 * 256 * 512)
-        .map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 24) as u8
-        })
-        .collect();
-    let input = dir.join("noise_256x256x512_uint8.raw");
-    std::fs::write(&input, bytes).unwrap();
-    input
+    noise_file(dir, [256, 256, 512], 0x9e37_79b9_7f4a_7c15)
 }
 
 /// Waits (up to 5 s) until the process `pid` holds an unnamed file in `folder`: the output it
