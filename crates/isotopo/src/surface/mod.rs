@@ -23,6 +23,7 @@ pub mod search;
 
 use crate::grid::MaskVolume;
 use crate::topology::cases::{Case, EDGE_CORNERS};
+use crate::topology::mask::PlaneMask;
 
 /// A crossing point: the grid edge from `p` to `p + e[axis]` (volume-local coordinates; -1 and
 /// `n` are the padding).
@@ -178,11 +179,17 @@ impl Around {
 /// Case of the cube with lower corner `q`.
 #[inline]
 pub fn cube_case(vol: &MaskVolume, q: [i64; 3]) -> u8 {
+    case_in_planes(vol.plane(q[2]), vol.plane(q[2] + 1), q)
+}
+
+/// Case of the cube with lower corner `q`, whose planes are `below` (w = q\[2\]) and `above`.
+#[inline]
+fn case_in_planes(below: &PlaneMask, above: &PlaneMask, q: [i64; 3]) -> u8 {
+    let (x, y) = (q[0] as isize, q[1] as isize);
     let mut c = 0u8;
-    for b in 0..8u8 {
-        let (dx, dy, dz) = ((b & 1) as i64, ((b >> 1) & 1) as i64, ((b >> 2) & 1) as i64);
-        if vol.get(q[0] + dx, q[1] + dy, q[2] + dz) {
-            c |= 1 << b;
+    for (b, plane) in [(0, below), (4, above)] {
+        for (k, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
+            c |= (plane.get(x + dx, y + dy) as u8) << (b + k);
         }
     }
     c
@@ -223,6 +230,9 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
         return None;
     }
     let (lo, hi) = other_axes(v.axis);
+    // The planes the four cubes span (w - 1 ..= w + 1), looked up once.
+    let w = v.p[2];
+    let planes = [vol.plane(w - 1), vol.plane(w), vol.plane(w + 1)];
     // The four cubes around the edge: one (prev, next, piece code, diagonal) link each; a tube
     // gives one link per triangle through v instead, so the chain passes through its diagonals.
     let mut links = [(0u64, 0u64, 0u8, false); MAX_DEGREE];
@@ -234,7 +244,8 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
         let mut q = v.p;
         q[lo] -= dl;
         q[hi] -= dh;
-        let case = &table[cube_case(vol, q) as usize];
+        let at = (q[2] - w + 1) as usize;
+        let case = &table[case_in_planes(planes[at], planes[at + 1], q) as usize];
         let e = local_edge(v.axis, dl, dh);
         let pi = case.edge_owner[e as usize];
         let piece = &case.pieces[pi as usize];
