@@ -661,6 +661,127 @@ fn sweep_level(
     Ok(sweeper.finish())
 }
 
+/// What [`find_handles_each`] calls after each step: the volume, the handles the step found,
+/// and whether it was the last.
+pub type StepHandles<'a> = dyn FnMut(&MaskVolume, Vec<LocatedHandle>, bool) -> Result<()> + 'a;
+
+/// Sweeps `vol` (already arranged for its axis) like [`find_handles`], but hands over the
+/// handles each step finds as it goes (`each`, with the volume as it stands; `last` after the
+/// last step), so that a caller measuring and writing them need not hold them all. Returns how
+/// to number them: their surfaces, resolved once the whole volume is swept.
+pub fn find_handles_each(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    progress: &dyn Progress,
+    each: &mut StepHandles<'_>,
+) -> Result<SurfaceNumbers> {
+    let mut sweeper = Sweeper::at_depth(conn, 0, None);
+    progress.start("sweep", vol.dims[2] as u64 + 1);
+    let mut found = 0;
+    while !sweeper.done(vol) {
+        let n = sweeper.step(vol)?;
+        vol.follow_sweep(sweeper.next)?;
+        // Never rewound: the handles can go (the checkpoints' counts are then stale).
+        let new: Vec<LocatedHandle> = sweeper.handles.drain(..).map(|(_, h)| h).collect();
+        debug_assert_eq!(new.len(), n);
+        found += n;
+        each(vol, new, sweeper.done(vol))?;
+        progress.advance(1);
+        progress.message(&format!("{found} handles"));
+        crate::progress::between_steps(progress, "sweep")?;
+    }
+    if vol.dims[2] == 0 {
+        each(vol, Vec::new(), true)?;
+    }
+    progress.finish();
+    Ok(SurfaceNumbers::of(sweeper.finish()))
+}
+
+/// The closed surfaces of a sweep, numbered as the genus pass numbers them, and which one each
+/// node of its Reeb graph lies on.
+pub struct SurfaceNumbers {
+    graph: ReebGraph,
+    id_of: std::collections::HashMap<u32, usize>,
+    /// Every closed surface, by id (their `handles` counts are left to the caller).
+    pub surfaces: Vec<SweepSurface>,
+    /// Total genus from the Euler characteristic.
+    pub genus: i64,
+}
+
+impl SurfaceNumbers {
+    fn of(level: SweepLevel) -> SurfaceNumbers {
+        let uf = &level.graph.uf;
+        // Surfaces: components holding ribbons, numbered by their lowest cube.
+        let mut key_of_root: std::collections::HashMap<u32, [i64; 4]> = Default::default();
+        for &(n, k) in &level.ribbon_key {
+            let e = key_of_root.entry(uf.find(n)).or_insert([i64::MAX; 4]);
+            *e = (*e).min(k);
+        }
+        let mut roots: Vec<(u32, [i64; 4])> = key_of_root.into_iter().collect();
+        roots.sort_by_key(|&(_, k)| k);
+        let id_of: std::collections::HashMap<u32, usize> = roots
+            .iter()
+            .enumerate()
+            .map(|(i, &(r, _))| (r, i))
+            .collect();
+        let mut chi4 = vec![0i64; roots.len()];
+        for &(n, c) in &level.ribbon_chi4 {
+            chi4[id_of[&uf.find(n)]] += c;
+        }
+        let surfaces: Vec<SweepSurface> = chi4
+            .iter()
+            .enumerate()
+            .map(|(id, &c)| SweepSurface {
+                id,
+                genus: (2 - c / 4) / 2,
+                handles: 0,
+            })
+            .collect();
+        let genus = surfaces.iter().map(|s| s.genus).sum();
+        SurfaceNumbers {
+            graph: level.graph,
+            id_of,
+            surfaces,
+            genus,
+        }
+    }
+
+    /// The surface a handle lies on.
+    pub fn surface_of(&self, h: &LocatedHandle) -> usize {
+        self.id_of[&self.graph.uf.find(h.top_node)]
+    }
+
+    /// The order handles are numbered in: by surface, then lowest position (z, y, x).
+    pub fn order_key(&self, key: NumberKey) -> (usize, [i64; 3]) {
+        let surface = self.id_of[&self.graph.uf.find(key.top_node)];
+        (surface, key.at.map(i64::from))
+    }
+}
+
+/// What numbers a handle once the sweep is done ([`SurfaceNumbers::order_key`]), kept where
+/// the handle itself is let go.
+#[derive(Clone, Copy, Debug)]
+pub struct NumberKey {
+    top_node: u32,
+    /// Lowest corner of its box, (z, y, x).
+    at: [i32; 3],
+}
+
+impl LocatedHandle {
+    /// See [`NumberKey`].
+    pub fn number_key(&self) -> NumberKey {
+        // Beyond 2^31 samples an axis (no real volume) the order of positions saturates.
+        let b = self
+            .bbox
+            .min
+            .map(|x| x.clamp(i32::MIN as i64, i32::MAX as i64) as i32);
+        NumberKey {
+            top_node: self.top_node,
+            at: [b[2], b[1], b[0]],
+        }
+    }
+}
+
 /// The `g` handles of ribbon `r` of slice `s`, from its capped mini-volume: the cycles of an
 /// orthogonal sweep, and those still inside one of that sweep's slices found directly.
 fn intra_ribbon(
@@ -877,57 +998,34 @@ pub fn find_handles(
     conn: Connectivity,
     progress: &dyn Progress,
 ) -> Result<HandleReport> {
-    let level = sweep_level(vol, conn, 0, None, progress)?;
-    let uf = &level.graph.uf;
-    // Surfaces: components holding ribbons, numbered by their lowest cube.
-    let mut key_of_root: std::collections::HashMap<u32, [i64; 4]> = Default::default();
-    for &(n, k) in &level.ribbon_key {
-        let e = key_of_root.entry(uf.find(n)).or_insert([i64::MAX; 4]);
-        *e = (*e).min(k);
-    }
-    let mut roots: Vec<(u32, [i64; 4])> = key_of_root.into_iter().collect();
-    roots.sort_by_key(|&(_, k)| k);
-    let id_of: std::collections::HashMap<u32, usize> = roots
-        .iter()
-        .enumerate()
-        .map(|(i, &(r, _))| (r, i))
-        .collect();
-    let mut chi4 = vec![0i64; roots.len()];
-    for &(n, c) in &level.ribbon_chi4 {
-        chi4[id_of[&uf.find(n)]] += c;
-    }
-    let mut surfaces: Vec<SweepSurface> = chi4
-        .iter()
-        .enumerate()
-        .map(|(id, &c)| SweepSurface {
-            id,
-            genus: (2 - c / 4) / 2,
-            handles: 0,
-        })
-        .collect();
-    let mut handles: Vec<Handle> = level
-        .handles
+    let mut level = sweep_level(vol, conn, 0, None, progress)?;
+    let located = std::mem::take(&mut level.handles);
+    let SurfaceNumbers {
+        graph,
+        id_of,
+        mut surfaces,
+        genus,
+    } = SurfaceNumbers::of(level);
+    let numbers = SurfaceNumbers {
+        graph,
+        id_of,
+        surfaces: Vec::new(),
+        genus,
+    };
+    let mut handles: Vec<Handle> = located
         .into_iter()
         .map(|h| Handle {
             id: 0,
-            surface: id_of[&uf.find(h.top_node)],
+            surface: numbers.surface_of(&h),
             located: h,
         })
         .collect();
     // Number handles by surface, then position.
-    handles.sort_by_key(|h| {
-        (
-            h.surface,
-            h.located.bbox.min[2],
-            h.located.bbox.min[1],
-            h.located.bbox.min[0],
-        )
-    });
+    handles.sort_by_key(|h| numbers.order_key(h.located.number_key()));
     for (i, h) in handles.iter_mut().enumerate() {
         h.id = i;
         surfaces[h.surface].handles += 1;
     }
-    let genus = surfaces.iter().map(|s| s.genus).sum();
     Ok(HandleReport {
         axis,
         handles,
