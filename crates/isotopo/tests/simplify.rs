@@ -592,30 +592,6 @@ fn out_of_core_gives_the_same_result() {
     assert!(compared >= 8, "only {compared} runs edited anything");
 }
 
-/// A mask from `tests/data` (dims, then the bits x fastest as hex) as a ±1 volume.
-fn fixture(name: &str) -> InMemoryVolume {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(name);
-    let text = std::fs::read_to_string(&path).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let dims: Vec<usize> = lines
-        .next()
-        .unwrap()
-        .split_whitespace()
-        .map(|x| x.parse().unwrap())
-        .collect();
-    let hex: String = lines.collect();
-    let bytes: Vec<u8> = (0..hex.len() / 2)
-        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap())
-        .collect();
-    let [nx, ny, nz] = [dims[0], dims[1], dims[2]];
-    let inside: Vec<bool> = (0..nx * ny * nz)
-        .map(|i| (bytes[i / 8] >> (i % 8)) & 1 == 1)
-        .collect();
-    volume_of([nx, ny, nz], &inside)
-}
-
 /// Loops below tau that no handle's own measurement shows: in these two noise volumes the code
 /// that measured each handle on its own (its Reeb loop confined to its cycle, or chained round
 /// it, and the cross loop of that) kept handles it had measured at 8 edges or more, and left a
@@ -624,7 +600,7 @@ fn fixture(name: &str) -> InMemoryVolume {
 #[test]
 fn no_loop_below_tau_hides_between_handles() {
     for name in ["noise24-seed2.txt", "noise24-seed4.txt"] {
-        let vol = fixture(name);
+        let vol = common::fixture(name);
         for conn in BOTH {
             for axis in [Axis::Z, Axis::X] {
                 let (out, _) = check(name, &vol, 0.0, axis, &options(8.0, Mode::Both, conn))

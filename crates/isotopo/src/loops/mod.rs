@@ -547,6 +547,31 @@ fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<
     Some(mapped)
 }
 
+/// For an intra-ribbon handle whose capped mini-volume gave no loop on the original surface
+/// (one found directly whose curve runs through the caps): the generator of its ribbon's
+/// homology (on the swept surface itself) nearest to where the handle was found. It goes round
+/// a handle of that ribbon, the same one or a neighbour of it; the searches from it then
+/// measure a handle of the ribbon rather than none.
+fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Vec<Vertex>> {
+    let (slice, ribbon) = h.located.ribbon?;
+    let vol = top.vol;
+    let b = &h.located.bbox;
+    let centre: [f64; 3] = std::array::from_fn(|k| (b.min[k] + b.max[k]) as f64 / 2.0 + 0.5);
+    let distance = |lp: &Vec<Vertex>| {
+        lp.iter()
+            .map(|v| {
+                let p = vol.frame.to_original(v.midpoint());
+                (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum::<f64>()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let cycles = ribbon_generators(top, cache, slice, ribbon)?;
+    cycles
+        .into_iter()
+        .filter(|c| c.len() >= 3)
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+}
+
 /// A loop crossing `curve` once, for when none is shorter than the limit and any will do: for a
 /// top-level handle's cut, chained through its cycle's ribbons (cheap round a tall cycle); else
 /// the first the search from all of `curve` closes.
@@ -599,7 +624,7 @@ fn find(
     let Some(p) = (if top_level {
         Some(h.located.cut.clone())
     } else {
-        mini_volume_loop(h, conn, vol)
+        mini_volume_loop(h, conn, vol).or_else(|| ribbon_loop(top, cache, h))
     }) else {
         return Found {
             reeb: None,
@@ -983,8 +1008,6 @@ pub fn measure_all(
     limits: Limits,
     progress: &dyn crate::progress::Progress,
 ) -> Result<Vec<HandleLoops>> {
-    use rayon::prelude::*;
-    let table = cases(conn);
     progress.start("loops", handles.len() as u64);
     // Up the sweep axis: by the handle's highest slice (where its cycle closed).
     let w_axis = vol.frame.uvw[2];
@@ -998,42 +1021,130 @@ pub fn measure_all(
     } else {
         handles.len().max(1)
     };
+    let pool = WorkerCaches::new(MEASURE_GRAPH_LIMIT);
     for ids in order.chunks(batch) {
         vol.follow_sweep(top_slice(&handles[ids[0]]))?;
-        let frozen: &MaskVolume = vol;
-        // Why the batch stopped early: cancelled, or past the memory limit.
-        let stop = std::sync::OnceLock::new();
-        let measured: Vec<Option<HandleLoops>> = ids
-            .par_iter()
-            .map_init(
-                || (Graph::new(frozen, table), SliceCache::new(conn)),
-                |(g, cache), &i| {
-                    if stop.get().is_some() {
-                        return None;
-                    }
-                    if let Err(e) = crate::progress::between_steps(progress, "loop searches") {
-                        let _ = stop.set(e);
-                        return None;
-                    }
-                    // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
-                    if g.len() > MEASURE_GRAPH_LIMIT {
-                        g.clear();
-                    }
-                    let l = measure(g, cache, &handles[i], conn, affine, limits);
-                    progress.advance(1);
-                    Some(l)
-                },
-            )
-            .collect();
-        if let Some(e) = stop.into_inner() {
-            return Err(e);
-        }
+        let batch: Vec<&Handle> = ids.iter().map(|&i| &handles[i]).collect();
+        let measured = measure_batch(vol, &batch, conn, affine, limits, &pool, progress)?;
         for (&i, l) in ids.iter().zip(measured) {
-            out[i] = l;
+            out[i] = Some(l);
         }
     }
     progress.finish();
     Ok(out
+        .into_iter()
+        .map(|l| l.expect("every handle measured"))
+        .collect())
+}
+
+/// The workers' caches of neighbourhoods and slices, kept from batch to batch of
+/// [`measure_batch`] over one volume whose samples do not change (only its window moves).
+pub struct WorkerCaches {
+    kept: std::sync::Mutex<Vec<(crate::surface::search::GraphCache, SliceCache)>>,
+    /// Vertices a worker's graph may number before it starts afresh (between handles).
+    graph_limit: usize,
+}
+
+impl WorkerCaches {
+    /// Caches whose graphs start afresh beyond `graph_limit` vertices (a few hundred bytes
+    /// each).
+    pub fn new(graph_limit: usize) -> WorkerCaches {
+        WorkerCaches {
+            kept: Default::default(),
+            graph_limit,
+        }
+    }
+}
+
+/// One worker's graph and slices, given back to the pool when the worker is done.
+struct Worker<'a> {
+    graph: Option<Graph<'a>>,
+    slices: Option<SliceCache>,
+    pool: &'a WorkerCaches,
+}
+
+impl<'a> Worker<'a> {
+    fn take(pool: &'a WorkerCaches, vol: &'a MaskVolume, conn: Connectivity) -> Worker<'a> {
+        let kept = pool.kept.lock().ok().and_then(|mut p| p.pop());
+        let (g, slices) = kept.unwrap_or_else(|| {
+            (
+                crate::surface::search::GraphCache::default(),
+                SliceCache::new(conn),
+            )
+        });
+        Worker {
+            graph: Some(Graph::with_cache(vol, cases(conn), g)),
+            slices: Some(slices),
+            pool,
+        }
+    }
+}
+
+impl Drop for Worker<'_> {
+    /// Gives the caches back, but not a graph grown past the limit (one long search): cleared,
+    /// it would still hold its memory.
+    fn drop(&mut self) {
+        let (Some(g), Some(s)) = (self.graph.take(), self.slices.take()) else {
+            return;
+        };
+        let Ok(mut pool) = self.pool.kept.lock() else {
+            return;
+        };
+        // Rayon may run more workers than threads at once (one waiting steals another's work);
+        // keep as many caches as threads.
+        if pool.len() < rayon::current_num_threads() {
+            let g = match g.len() > self.pool.graph_limit {
+                true => Default::default(),
+                false => g.into_cache(),
+            };
+            pool.push((g, s));
+        }
+    }
+}
+
+/// Measures `handles` of `vol` in parallel, each worker with caches from `pool`, advancing
+/// `progress` by one a handle; stops at the first cancellation or memory error.
+pub fn measure_batch(
+    vol: &MaskVolume,
+    handles: &[&Handle],
+    conn: Connectivity,
+    affine: &Affine,
+    limits: Limits,
+    pool: &WorkerCaches,
+    progress: &dyn crate::progress::Progress,
+) -> Result<Vec<HandleLoops>> {
+    use rayon::prelude::*;
+    // Why the batch stopped early: cancelled, or past the memory limit.
+    let stop = std::sync::OnceLock::new();
+    let measured: Vec<Option<HandleLoops>> = handles
+        .par_iter()
+        .map_init(
+            || Worker::take(pool, vol, conn),
+            |w, h| {
+                if stop.get().is_some() {
+                    return None;
+                }
+                if let Err(e) = crate::progress::between_steps(progress, "loop searches") {
+                    let _ = stop.set(e);
+                    return None;
+                }
+                let (Some(g), Some(cache)) = (&mut w.graph, &mut w.slices) else {
+                    return None;
+                };
+                // The cache of neighbourhoods is a speed-up, not a need: bound its memory.
+                if g.len() > pool.graph_limit {
+                    g.clear();
+                }
+                let l = measure(g, cache, h, conn, affine, limits);
+                progress.advance(1);
+                Some(l)
+            },
+        )
+        .collect();
+    if let Some(e) = stop.into_inner() {
+        return Err(e);
+    }
+    Ok(measured
         .into_iter()
         .map(|l| l.expect("every handle measured"))
         .collect())

@@ -132,3 +132,32 @@ impl UnionFind {
         self.0[a as usize] = b;
     }
 }
+
+/// A mask from `tests/data` (dims, then the bits x fastest as hex) as a ±1 volume.
+pub fn fixture(name: &str) -> InMemoryVolume {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let dims: Vec<usize> = lines
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let hex: String = lines.collect();
+    let bytes: Vec<u8> = (0..hex.len() / 2)
+        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap())
+        .collect();
+    let [nx, ny, nz] = [dims[0], dims[1], dims[2]];
+    let inside: Vec<bool> = (0..nx * ny * nz)
+        .map(|i| (bytes[i / 8] >> (i % 8)) & 1 == 1)
+        .collect();
+    InMemoryVolume::from_fn([nx, ny, nz], |x, y, z| {
+        match inside[(z * ny + y) * nx + x] {
+            true => 1.0,
+            false => -1.0,
+        }
+    })
+}
