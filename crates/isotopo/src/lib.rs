@@ -83,6 +83,7 @@ pub mod plots;
 pub mod progress;
 pub mod report;
 pub mod simplify;
+pub(crate) mod spool;
 pub mod surface;
 pub mod sweep;
 pub mod topology;
@@ -91,7 +92,7 @@ pub mod volume;
 
 pub use error::{Error, Result};
 pub use jobs::{
-    analyze, genus, handles, simplify, Analysis, AnalyzeOptions, Handles, Simplified, Source,
-    Topology,
+    analyze, analyze_streamed, genus, handles, simplify, Analysis, AnalyzeOptions, Handles,
+    Simplified, Source, StreamedAnalysis, Topology,
 };
 pub use simplify::SimplifyOptions;

@@ -45,3 +45,18 @@ impl Progress for NoProgress {
     fn start(&self, _stage: &str, _total: u64) {}
     fn advance(&self, _n: u64) {}
 }
+
+/// Passes on cancellation and traces only: for work done inside another stage's steps (the
+/// loops measured while the sweep goes on), whose own counts would confuse its bar.
+pub struct StepsOnly<'a>(pub &'a dyn Progress);
+
+impl Progress for StepsOnly<'_> {
+    fn start(&self, _stage: &str, _total: u64) {}
+    fn advance(&self, _n: u64) {}
+    fn trace(&self, line: std::fmt::Arguments<'_>) {
+        self.0.trace(line)
+    }
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
+    }
+}
