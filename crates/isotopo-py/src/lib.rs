@@ -213,8 +213,11 @@ fn analyze(
         lengths,
     };
     run_job(py, volume, opts, progress, |source, p| {
-        let done = isotopo::analyze(source, &a, p)?;
-        Ok(done.to_json(&a).to_string())
+        // Streamed: the report's text is all that is held, not the handles it comes from.
+        let mut done = isotopo::analyze_streamed(source, &a, p)?;
+        let mut text = Vec::new();
+        done.write_json(&a, false, &mut text)?;
+        String::from_utf8(text).map_err(|e| isotopo::Error::Internal(e.to_string()))
     })
 }
 

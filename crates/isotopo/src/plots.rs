@@ -6,7 +6,7 @@ use crate::volume::{AtomicOutput, Compression};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// One handle as plotted.
+/// Handles as plotted: those with the same lengths and kind, counted once.
 #[derive(Clone, Copy, Debug)]
 pub struct PlotPoint {
     /// Loop lengths in voxel edges (`None`: not found within the search limit).
@@ -15,6 +15,9 @@ pub struct PlotPoint {
     pub cross: Option<usize>,
     /// Whether the handle's smaller loop encloses void (hollow marker, as in the paper).
     pub void: bool,
+    /// How many handles have these lengths (a volume of noise has 100,000 handles and a few
+    /// hundred distinct points).
+    pub count: usize,
 }
 
 impl PlotPoint {
@@ -137,8 +140,11 @@ fn draw_histogram<DB: DrawingBackend>(
     tau: Option<f64>,
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let sizes: Vec<usize> = points.iter().filter_map(|p| p.size()).collect();
-    let max = sizes.iter().copied().max().unwrap_or(10).max(10) as f64;
+    let sizes: Vec<(usize, usize)> = points
+        .iter()
+        .filter_map(|p| Some((p.size()?, p.count)))
+        .collect();
+    let max = sizes.iter().map(|s| s.0).max().unwrap_or(10).max(10) as f64;
     let mut edges = vec![2.5f64];
     while *edges.last().unwrap() <= max {
         let e = *edges.last().unwrap();
@@ -149,16 +155,17 @@ fn draw_histogram<DB: DrawingBackend>(
         });
     }
     let mut counts = vec![0u32; edges.len() - 1];
-    for &s in &sizes {
+    for &(s, n) in &sizes {
         if let Some(b) = (0..counts.len()).find(|&b| (s as f64) < edges[b + 1]) {
-            counts[b] += 1;
+            counts[b] += n as u32;
         }
     }
     let top = counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 2.0;
-    let not_found = points.len() - sizes.len();
+    let total: usize = points.iter().map(|p| p.count).sum();
+    let not_found = total - sizes.iter().map(|s| s.1).sum::<usize>();
     let caption = format!(
         "{title}: {} handles{}",
-        points.len(),
+        total,
         if not_found > 0 {
             format!(" ({not_found} beyond the search limit)")
         } else {
@@ -229,10 +236,15 @@ fn draw_scatter<DB: DrawingBackend>(
         .iter()
         .filter_map(|p| Some((p.reeb? as f64, p.cross? as f64, p.void)))
         .collect();
+    let measured: usize = points
+        .iter()
+        .filter(|p| p.reeb.is_some() && p.cross.is_some())
+        .map(|p| p.count)
+        .sum();
     let max = both.iter().map(|p| p.0.max(p.1)).fold(10.0, f64::max) * 1.3;
     let mut chart = ChartBuilder::on(root)
         .caption(
-            format!("{title}: loop lengths of {} handles", both.len()),
+            format!("{title}: loop lengths of {measured} handles"),
             (FONT, 22),
         )
         .margin(15)
