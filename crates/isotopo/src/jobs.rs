@@ -358,6 +358,9 @@ const STREAM_BATCH: usize = 1024;
 /// On 128³ noise (53,546 handles) 2^14 and 2^16 take the same time, 2^14 a third less memory.
 const STREAM_GRAPH_LIMIT: usize = 1 << 14;
 
+/// Per handle in the report's order: where its JSON lies, and its surface.
+type ReportOrder = Vec<(crate::spool::Place, u32)>;
+
 /// [`analyze`]'s report, one handle at a time (see [`analyze_streamed`]).
 pub struct StreamedAnalysis {
     /// The input's header.
@@ -373,8 +376,7 @@ pub struct StreamedAnalysis {
     /// Seconds in all, up to the first handle handed over.
     pub seconds: f64,
     spool: crate::spool::SpoolReader,
-    /// Per handle in the report's order: where its JSON lies, and its surface.
-    order: Vec<(crate::spool::Place, u32)>,
+    order: ReportOrder,
     next: usize,
 }
 
@@ -382,8 +384,8 @@ pub struct StreamedAnalysis {
 /// hands over each step's handles, they are measured as it goes (in batches, in parallel) and
 /// let go, their JSON kept in a scratch file; once the surfaces are known the handles come out
 /// numbered as [`analyze`] numbers them, one [`report::measured_handle_json`] at a time, each
-/// the same as in [`Analysis::to_json`]. What stays in memory is the sweep's and about 40
-/// bytes a handle.
+/// the same as in [`Analysis::to_json`]. What stays in memory is the sweep's, the searches'
+/// caches and a few tens of bytes a handle.
 ///
 /// [`report::measured_handle_json`]: crate::report::measured_handle_json
 pub fn analyze_streamed(
@@ -435,6 +437,29 @@ pub fn analyze_streamed(
         Ok(())
     };
     let numbers = crate::sweep::find_handles_each(&mut masks, conn, progress, &mut each)?;
+    let genus = numbers.genus;
+    let (surfaces, order) = number_handles(found, numbers);
+    let seconds = t.elapsed().as_secs_f64();
+    Ok(StreamedAnalysis {
+        info,
+        axis: opts.axis,
+        genus,
+        surfaces,
+        seconds_sweep: seconds - seconds_loops,
+        seconds,
+        spool: spool.finish()?,
+        order,
+        next: 0,
+    })
+}
+
+/// The report's order of the handles found (as [`crate::sweep::find_handles`] numbers them: by
+/// surface, then position; ties in the order found), with each one's surface; and the surfaces
+/// with their counts of handles.
+fn number_handles(
+    found: Vec<(crate::spool::Place, crate::sweep::NumberKey)>,
+    numbers: crate::sweep::SurfaceNumbers,
+) -> (Vec<crate::sweep::SweepSurface>, ReportOrder) {
     let mut numbered: Vec<(usize, [i64; 3], crate::spool::Place)> = found
         .into_iter()
         .map(|(place, key)| {
@@ -447,21 +472,9 @@ pub fn analyze_streamed(
     for &(surface, _, _) in &numbered {
         surfaces[surface].handles += 1;
     }
-    let seconds = t.elapsed().as_secs_f64();
-    Ok(StreamedAnalysis {
-        info,
-        axis: opts.axis,
-        genus: numbers.genus,
-        surfaces,
-        seconds_sweep: seconds - seconds_loops,
-        seconds,
-        spool: spool.finish()?,
-        order: numbered
-            .into_iter()
-            .map(|(surface, _, place)| (place, surface as u32))
-            .collect(),
-        next: 0,
-    })
+    let order = numbered.into_iter();
+    let order = order.map(|(surface, _, place)| (place, surface as u32));
+    (surfaces, order.collect())
 }
 
 /// Measures a batch of handles (in voxel edges, millimetres or both, as asked) and returns

@@ -662,12 +662,12 @@ fn sweep_level(
 }
 
 /// What [`find_handles_each`] calls after each step: the volume, the handles the step found,
-/// and whether it was the last.
+/// and whether the sweep is done (a last call, with no handle).
 pub type StepHandles<'a> = dyn FnMut(&MaskVolume, Vec<LocatedHandle>, bool) -> Result<()> + 'a;
 
 /// Sweeps `vol` (already arranged for its axis) like [`find_handles`], but hands over the
-/// handles each step finds as it goes (`each`, with the volume as it stands; `last` after the
-/// last step), so that a caller measuring and writing them need not hold them all. Returns how
+/// handles each step finds as it goes (`each`, with the volume as it stands; once more with no
+/// handle and `last` after the last step), so that a caller measuring and writing them need not hold them all. Returns how
 /// to number them: their surfaces, resolved once the whole volume is swept.
 pub fn find_handles_each(
     vol: &mut MaskVolume,
@@ -685,16 +685,17 @@ pub fn find_handles_each(
         let new: Vec<LocatedHandle> = sweeper.handles.drain(..).map(|(_, h)| h).collect();
         debug_assert_eq!(new.len(), n);
         found += n;
-        each(vol, new, sweeper.done(vol))?;
+        each(vol, new, false)?;
         progress.advance(1);
         progress.message(&format!("{found} handles"));
         crate::progress::between_steps(progress, "sweep")?;
     }
-    if vol.dims[2] == 0 {
-        each(vol, Vec::new(), true)?;
-    }
     progress.finish();
-    Ok(SurfaceNumbers::of(sweeper.finish()))
+    // The last call comes once the sweep's own state is gone but its Reeb graph: a caller
+    // measuring what is left has that memory back.
+    let numbers = SurfaceNumbers::of(sweeper.finish());
+    each(vol, Vec::new(), true)?;
+    Ok(numbers)
 }
 
 /// The closed surfaces of a sweep, numbered as the genus pass numbers them, and which one each
