@@ -32,7 +32,9 @@
 //! # Ok::<(), isotopo::Error>(())
 //! ```
 //!
-//! `examples/simplify_in_memory.rs` does the same and takes the edited samples back.
+//! `examples/simplify_in_memory.rs` does the same and takes the edited samples back. For
+//! volumes with 100,000 handles and more, [`analyze_streamed`] gives [`analyze()`]'s report a
+//! handle at a time, with memory that does not grow with the handles.
 //!
 //! Progress goes through [`progress::Progress`], which a caller implements (the command line
 //! draws bars); its `cancelled` is asked between slices, planes and handles, and a job then stops
