@@ -371,7 +371,8 @@ pub struct StreamedAnalysis {
     pub genus: i64,
     /// Every closed surface, by id, with how many handles it holds.
     pub surfaces: Vec<crate::sweep::SweepSurface>,
-    /// Seconds for the sweep (reading included), the loops' searches not counted.
+    /// Seconds for the sweep (reading included), the loops' searches and their reports not
+    /// counted.
     pub seconds_sweep: f64,
     /// Seconds in all, up to the first handle handed over.
     pub seconds: f64,
@@ -385,7 +386,9 @@ pub struct StreamedAnalysis {
 /// let go, their JSON kept in a scratch file; once the surfaces are known the handles come out
 /// numbered as [`analyze`] numbers them, one [`report::measured_handle_json`] at a time, each
 /// the same as in [`Analysis::to_json`]. What stays in memory is the sweep's, the searches'
-/// caches and a few tens of bytes a handle.
+/// caches, a few tens of bytes a handle, and the handles found but not yet measured: up to a
+/// batch during the sweep (1,024; out of core 64), then those left at its end (on a real scan
+/// with fewer, all of them, measured up the sweep axis with the window following).
 ///
 /// [`report::measured_handle_json`]: crate::report::measured_handle_json
 pub fn analyze_streamed(
@@ -413,23 +416,21 @@ pub fn analyze_streamed(
     let conn = s.connectivity;
     // Edges and millimetres: the lengths differ, so do the searches' graphs.
     let pools = [0, 1].map(|_| WorkerCaches::new(STREAM_GRAPH_LIMIT));
-    let mut each = |vol: &MaskVolume, new: Vec<crate::sweep::LocatedHandle>, last: bool| {
+    // Out of core, the planes the searches load stay until the window next moves: small batches.
+    let batch_size = match masks.out_of_core() {
+        true => crate::loops::MEASURE_BATCH,
+        false => STREAM_BATCH,
+    };
+    let mut each = |vol: &MaskVolume, new: Vec<crate::sweep::LocatedHandle>, _last: bool| {
         pending.extend(new);
-        // Measured a batch at a time, and what is left after the last step.
-        let flush = pending.len() >= STREAM_BATCH || (last && !pending.is_empty());
-        if !flush {
+        // A batch at a time; what is left after the last step waits for the window to be free.
+        if pending.len() < batch_size {
             return Ok(());
         }
         let t = Instant::now();
-        let batch: Vec<crate::sweep::Handle> = std::mem::take(&mut pending)
-            .into_iter()
-            .map(|located| crate::sweep::Handle {
-                id: 0,
-                surface: 0,
-                located,
-            })
-            .collect();
-        let records = measure_to_json(vol, &batch, opts, &info, &pools, progress)?;
+        let batch = numbered_zero(std::mem::take(&mut pending));
+        let quiet = &crate::progress::StepsOnly(progress);
+        let records = measure_to_json(vol, &batch, opts, &info, &pools, quiet)?;
         for (h, record) in batch.into_iter().zip(records) {
             found.push((spool.push(&record)?, h.located.number_key()));
         }
@@ -437,6 +438,16 @@ pub fn analyze_streamed(
         Ok(())
     };
     let numbers = crate::sweep::find_handles_each(&mut masks, conn, progress, &mut each)?;
+    // The rest (on a real scan, every handle), up the sweep axis with the window following.
+    let t_rest = Instant::now();
+    let rest = numbered_zero(pending);
+    progress.start("loops", rest.len() as u64);
+    let records = measure_in_window(&mut masks, &rest, opts, &info, &pools, batch_size, progress)?;
+    progress.finish();
+    for (h, record) in rest.into_iter().zip(records) {
+        found.push((spool.push(&record)?, h.located.number_key()));
+    }
+    seconds_loops += t_rest.elapsed().as_secs_f64();
     let genus = numbers.genus;
     let (surfaces, order) = number_handles(found, numbers);
     let seconds = t.elapsed().as_secs_f64();
@@ -477,8 +488,48 @@ fn number_handles(
     (surfaces, order.collect())
 }
 
+/// Handles as the report's type, their ids and surfaces still to be given.
+fn numbered_zero(located: Vec<crate::sweep::LocatedHandle>) -> Vec<crate::sweep::Handle> {
+    let each = |located| crate::sweep::Handle {
+        id: 0,
+        surface: 0,
+        located,
+    };
+    located.into_iter().map(each).collect()
+}
+
+/// [`measure_to_json`] for handles found anywhere in the volume: in batches up the sweep axis
+/// (by the slice where each one's cycle closed), the window of planes following, so that out
+/// of core the planes loaded stay within it and a batch. The reports come back in `handles`'
+/// order.
+fn measure_in_window(
+    vol: &mut MaskVolume,
+    handles: &[crate::sweep::Handle],
+    opts: &AnalyzeOptions,
+    info: &VolumeInfo,
+    pools: &[WorkerCaches; 2],
+    batch_size: usize,
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<u8>>> {
+    let w_axis = vol.frame.uvw[2];
+    let w_offset = vol.frame.offset[w_axis];
+    let top_slice = |h: &crate::sweep::Handle| h.located.bbox.max[w_axis] - w_offset;
+    let mut order: Vec<usize> = (0..handles.len()).collect();
+    order.sort_by_key(|&i| top_slice(&handles[i]));
+    let mut out: Vec<Vec<u8>> = vec![Vec::new(); handles.len()];
+    for ids in order.chunks(batch_size.max(1)) {
+        vol.follow_sweep(top_slice(&handles[ids[0]]))?;
+        let batch: Vec<crate::sweep::Handle> = ids.iter().map(|&i| handles[i].clone()).collect();
+        let records = measure_to_json(vol, &batch, opts, info, pools, progress)?;
+        for (&i, r) in ids.iter().zip(records) {
+            out[i] = r;
+        }
+    }
+    Ok(out)
+}
+
 /// Measures a batch of handles (in voxel edges, millimetres or both, as asked) and returns
-/// each one's report as compact JSON.
+/// each one's report as compact JSON; `progress` advances a step a handle.
 fn measure_to_json(
     vol: &MaskVolume,
     batch: &[crate::sweep::Handle],
@@ -491,8 +542,7 @@ fn measure_to_json(
     let conn = opts.surface.connectivity;
     let refs: Vec<&crate::sweep::Handle> = batch.iter().collect();
     let measure = |limits, pool| {
-        let quiet = &crate::progress::StepsOnly(progress);
-        crate::loops::measure_batch(vol, &refs, conn, &info.affine, limits, pool, quiet)
+        crate::loops::measure_batch(vol, &refs, conn, &info.affine, limits, pool, progress)
     };
     let loops_mm = match opts.lengths {
         Lengths::Edges => None,

@@ -277,15 +277,16 @@ impl LoopsWriter {
                 .vertices
                 .into_inner()
                 .map_err(|e| loops_scratch(e.into_error()))?;
-            use std::io::{Read, Seek};
+            use std::io::{ErrorKind, Read, Seek};
             file.rewind().map_err(loops_scratch)?;
             let mut buf = vec![0u8; 1 << 20];
             loop {
-                let n = file.read(&mut buf).map_err(loops_scratch)?;
-                if n == 0 {
-                    break;
+                match file.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => self.out.write_all(&buf[..n])?,
+                    Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(loops_scratch(e)),
                 }
-                self.out.write_all(&buf[..n])?;
             }
             let mut base = 0i32;
             let mut edges = Vec::with_capacity(1 << 16);

@@ -404,14 +404,23 @@ fn writing_reports_the_samples_at_the_isovalue_and_the_largest_move() {
 /// `analyze_streamed` (memory flat in the handles: measured as the sweep goes, kept in a scratch
 /// file) reports exactly what `analyze` does, handle by handle and in the same order: random
 /// volumes with hundreds of handles, both connectivities, lengths in edges, millimetres and
-/// both, a limit, and out of core.
+/// both, a limit, and out of core (batches of 64 measured while the sweep goes on); the last
+/// volume has more handles than a batch in memory (1,024), so some are measured mid-sweep there
+/// too.
 #[test]
 fn the_streamed_analysis_is_the_analysis() {
     use isotopo::jobs::Lengths;
     let mut handles = 0;
-    for (round, seed) in [5u64, 17, 23, 41].into_iter().enumerate() {
+    let mut most = 0;
+    for (round, seed) in [5u64, 17, 23, 41, 7].into_iter().enumerate() {
         let mut rng = Rng(seed);
-        let dims = [[26, 22, 19], [17, 31, 12]][round % 2];
+        let dims = [
+            [26, 22, 19],
+            [17, 31, 12],
+            [26, 22, 19],
+            [17, 31, 12],
+            [44, 40, 36],
+        ][round];
         let v = common::smoothed_noise(dims, 1, &mut rng);
         let vol = common::volume_from(dims, &v);
         let iso = common::quantile(&v, 0.5);
@@ -440,7 +449,12 @@ fn the_streamed_analysis_is_the_analysis() {
                 assert_eq!(summary[key], whole[key], "{what}: {key}");
             }
             handles += listed.len();
+            most = most.max(listed.len());
         }
     }
     assert!(handles > 400, "{handles} handles compared");
+    assert!(
+        most > 1024,
+        "no volume with more handles than a batch ({most})"
+    );
 }

@@ -995,7 +995,7 @@ pub fn linking_number(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 const MEASURE_GRAPH_LIMIT: usize = 1 << 21;
 
 /// Handles measured between two moves of an out-of-core volume's window.
-const MEASURE_BATCH: usize = 64;
+pub(crate) const MEASURE_BATCH: usize = 64;
 
 /// Measures every handle of a sweep's report, in parallel (each worker keeps its own cache of
 /// the surface graph). Out of core, the handles go in batches up the sweep axis, and between

@@ -230,9 +230,12 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
         return None;
     }
     let (lo, hi) = other_axes(v.axis);
-    // The planes the four cubes span (w - 1 ..= w + 1), looked up once.
+    // The planes the four cubes span (w - 1 ..= w + 1; w and w + 1 for an edge along w), looked
+    // up once: out of core, looking one up can read it back.
     let w = v.p[2];
-    let planes = [vol.plane(w - 1), vol.plane(w), vol.plane(w + 1)];
+    let mid = vol.plane(w);
+    let below = if v.axis == 2 { mid } else { vol.plane(w - 1) };
+    let planes = [below, mid, vol.plane(w + 1)];
     // The four cubes around the edge: one (prev, next, piece code, diagonal) link each; a tube
     // gives one link per triangle through v instead, so the chain passes through its diagonals.
     let mut links = [(0u64, 0u64, 0u8, false); MAX_DEGREE];
