@@ -430,7 +430,8 @@ pub fn analyze_streamed(
         let t = Instant::now();
         let batch = numbered_zero(std::mem::take(&mut pending));
         let quiet = &crate::progress::StepsOnly(progress);
-        let records = measure_to_json(vol, &batch, opts, &info, &pools, quiet)?;
+        let refs: Vec<&crate::sweep::Handle> = batch.iter().collect();
+        let records = measure_to_json(vol, &refs, opts, &info, &pools, quiet)?;
         for (h, record) in batch.into_iter().zip(records) {
             found.push((spool.push(&record)?, h.located.number_key()));
         }
@@ -442,7 +443,16 @@ pub fn analyze_streamed(
     let t_rest = Instant::now();
     let rest = numbered_zero(pending);
     progress.start("loops", rest.len() as u64);
-    let records = measure_in_window(&mut masks, &rest, opts, &info, &pools, batch_size, progress)?;
+    let mut records = vec![Vec::new(); rest.len()];
+    crate::loops::in_sweep_batches(
+        &mut masks,
+        &rest,
+        batch_size,
+        |vol: &MaskVolume, batch: &[&crate::sweep::Handle]| {
+            measure_to_json(vol, batch, opts, &info, &pools, progress)
+        },
+        &mut records,
+    )?;
     progress.finish();
     for (h, record) in rest.into_iter().zip(records) {
         found.push((spool.push(&record)?, h.located.number_key()));
@@ -498,41 +508,11 @@ fn numbered_zero(located: Vec<crate::sweep::LocatedHandle>) -> Vec<crate::sweep:
     located.into_iter().map(each).collect()
 }
 
-/// [`measure_to_json`] for handles found anywhere in the volume: in batches up the sweep axis
-/// (by the slice where each one's cycle closed), the window of planes following, so that out
-/// of core the planes loaded stay within it and a batch. The reports come back in `handles`'
-/// order.
-fn measure_in_window(
-    vol: &mut MaskVolume,
-    handles: &[crate::sweep::Handle],
-    opts: &AnalyzeOptions,
-    info: &VolumeInfo,
-    pools: &[WorkerCaches; 2],
-    batch_size: usize,
-    progress: &dyn Progress,
-) -> Result<Vec<Vec<u8>>> {
-    let w_axis = vol.frame.uvw[2];
-    let w_offset = vol.frame.offset[w_axis];
-    let top_slice = |h: &crate::sweep::Handle| h.located.bbox.max[w_axis] - w_offset;
-    let mut order: Vec<usize> = (0..handles.len()).collect();
-    order.sort_by_key(|&i| top_slice(&handles[i]));
-    let mut out: Vec<Vec<u8>> = vec![Vec::new(); handles.len()];
-    for ids in order.chunks(batch_size.max(1)) {
-        vol.follow_sweep(top_slice(&handles[ids[0]]))?;
-        let batch: Vec<crate::sweep::Handle> = ids.iter().map(|&i| handles[i].clone()).collect();
-        let records = measure_to_json(vol, &batch, opts, info, pools, progress)?;
-        for (&i, r) in ids.iter().zip(records) {
-            out[i] = r;
-        }
-    }
-    Ok(out)
-}
-
 /// Measures a batch of handles (in voxel edges, millimetres or both, as asked) and returns
 /// each one's report as compact JSON; `progress` advances a step a handle.
 fn measure_to_json(
     vol: &MaskVolume,
-    batch: &[crate::sweep::Handle],
+    batch: &[&crate::sweep::Handle],
     opts: &AnalyzeOptions,
     info: &VolumeInfo,
     pools: &[WorkerCaches; 2],
@@ -540,9 +520,8 @@ fn measure_to_json(
 ) -> Result<Vec<Vec<u8>>> {
     let (edges, mm) = opts.limits();
     let conn = opts.surface.connectivity;
-    let refs: Vec<&crate::sweep::Handle> = batch.iter().collect();
     let measure = |limits, pool| {
-        crate::loops::measure_batch(vol, &refs, conn, &info.affine, limits, pool, progress)
+        crate::loops::measure_batch(vol, batch, conn, &info.affine, limits, pool, progress)
     };
     let loops_mm = match opts.lengths {
         Lengths::Edges => None,

@@ -1009,12 +1009,6 @@ pub fn measure_all(
     progress: &dyn crate::progress::Progress,
 ) -> Result<Vec<HandleLoops>> {
     progress.start("loops", handles.len() as u64);
-    // Up the sweep axis: by the handle's highest slice (where its cycle closed).
-    let w_axis = vol.frame.uvw[2];
-    let w_offset = vol.frame.offset[w_axis];
-    let top_slice = |h: &Handle| h.located.bbox.max[w_axis] - w_offset;
-    let mut order: Vec<usize> = (0..handles.len()).collect();
-    order.sort_by_key(|&i| top_slice(&handles[i]));
     let mut out: Vec<Option<HandleLoops>> = vec![None; handles.len()];
     let batch = if vol.out_of_core() {
         MEASURE_BATCH
@@ -1022,19 +1016,50 @@ pub fn measure_all(
         handles.len().max(1)
     };
     let pool = WorkerCaches::new(MEASURE_GRAPH_LIMIT);
-    for ids in order.chunks(batch) {
-        vol.follow_sweep(top_slice(&handles[ids[0]]))?;
-        let batch: Vec<&Handle> = ids.iter().map(|&i| &handles[i]).collect();
-        let measured = measure_batch(vol, &batch, conn, affine, limits, &pool, progress)?;
-        for (&i, l) in ids.iter().zip(measured) {
-            out[i] = Some(l);
-        }
-    }
+    in_sweep_batches(
+        vol,
+        handles,
+        batch,
+        |vol: &MaskVolume, batch: &[&Handle]| {
+            let measured = measure_batch(vol, batch, conn, affine, limits, &pool, progress)?;
+            Ok(measured.into_iter().map(Some).collect())
+        },
+        &mut out,
+    )?;
     progress.finish();
     Ok(out
         .into_iter()
         .map(|l| l.expect("every handle measured"))
         .collect())
+}
+
+/// Runs `each` over `handles` in batches of `batch` up the sweep axis (by the slice where each
+/// one's cycle closed), the window of planes moved to each batch first: out of core, the
+/// planes the searches load stay within it and a batch. What `each` returns for a batch lands
+/// at its handles' places in `out`.
+pub fn in_sweep_batches<T, F>(
+    vol: &mut MaskVolume,
+    handles: &[Handle],
+    batch: usize,
+    mut each: F,
+    out: &mut [T],
+) -> Result<()>
+where
+    F: FnMut(&MaskVolume, &[&Handle]) -> Result<Vec<T>>,
+{
+    let w_axis = vol.frame.uvw[2];
+    let w_offset = vol.frame.offset[w_axis];
+    let top_slice = |h: &Handle| h.located.bbox.max[w_axis] - w_offset;
+    let mut order: Vec<usize> = (0..handles.len()).collect();
+    order.sort_by_key(|&i| top_slice(&handles[i]));
+    for ids in order.chunks(batch.max(1)) {
+        vol.follow_sweep(top_slice(&handles[ids[0]]))?;
+        let batch: Vec<&Handle> = ids.iter().map(|&i| &handles[i]).collect();
+        for (&i, x) in ids.iter().zip(each(vol, &batch)?) {
+            out[i] = x;
+        }
+    }
+    Ok(())
 }
 
 /// The workers' caches of neighbourhoods and slices, kept from batch to batch of
