@@ -803,6 +803,30 @@ impl Simplified {
         Ok(())
     }
 
+    /// Reads the input once more from its first slice, handing each z-slice to `f` as it was
+    /// and as edited (the HTML report's meshes before and after).
+    pub fn for_each_slice(
+        &mut self,
+        mut f: impl FnMut(usize, &Samples, &Samples) -> Result<()>,
+    ) -> Result<()> {
+        self.input.rewind()?;
+        let mut editor = SliceEditor::new(
+            &self.outcome.edits,
+            &self.wall_values,
+            self.classifier,
+            self.moves_at_iso(),
+        );
+        let nx = self.info.dims[0];
+        let mut before = Samples::new(self.info.dtype);
+        for z in 0..self.info.nz() {
+            self.input.read_slice(&mut before)?;
+            let mut after = before.clone();
+            editor.apply(z, nx, &mut after)?;
+            f(z, &before, &after)?;
+        }
+        Ok(())
+    }
+
     /// The isovalue to give another mesher (VTK, scikit-image) for the surface isotopo
     /// simplified: the isovalue itself, or for integer samples with the isovalue on a stored
     /// value, halfway to the next stored value inside (the same samples inside, none on it).

@@ -77,6 +77,7 @@ pub(crate) mod closure;
 pub mod compose;
 pub mod error;
 pub mod grid;
+pub mod html;
 pub mod jobs;
 pub mod loops;
 pub mod memory;

@@ -1,0 +1,274 @@
+//! What a report says, from the jobs' results: the summary lines and the handles' rows.
+
+use super::{HtmlHandle, HtmlReport, ReportKind};
+use crate::jobs::{AnalyzeOptions, Simplified, StreamedAnalysis};
+use crate::simplify::{Kept, Removed, SimplifyOptions};
+use crate::volume::{BBox, VolumeInfo};
+use serde_json::Value;
+
+impl HtmlHandle {
+    /// A handle of `analyze --json` (one element of its `handles`).
+    pub fn from_analysis_json(h: &Value) -> HtmlHandle {
+        let len = |l: &str| h[l]["length"].as_u64().map(|n| n as usize);
+        let mm = |l: &str| h[l]["length_mm"].as_f64();
+        let (reeb, cross) = (len("reeb_loop"), len("cross_loop"));
+        let smaller = match (reeb, cross) {
+            (Some(r), Some(c)) if c < r => "cross_loop",
+            (None, Some(_)) => "cross_loop",
+            _ => "reeb_loop",
+        };
+        let points = |l: &str| -> Option<Vec<[f64; 3]>> {
+            serde_json::from_value(h[l]["points"].clone()).ok()
+        };
+        let b = &h["bbox"];
+        let at = |k: &str, a: usize| b[k][a].as_i64().unwrap_or(0);
+        HtmlHandle {
+            id: h["id"].as_u64().unwrap_or(0) as usize,
+            surface: h["surface"].as_u64().map(|s| s as usize),
+            kind: h["kind"].as_str().unwrap_or("").to_string(),
+            size: h["size"].as_u64().map(|s| s as usize),
+            reeb,
+            reeb_mm: mm("reeb_loop"),
+            cross,
+            cross_mm: mm("cross_loop"),
+            encloses: h[smaller]["encloses"].as_str().map(String::from),
+            status: None,
+            detail: None,
+            bbox: [
+                at("min", 0),
+                at("min", 1),
+                at("min", 2),
+                at("max", 0),
+                at("max", 1),
+                at("max", 2),
+            ],
+            loops: ["reeb_loop", "cross_loop"]
+                .into_iter()
+                .filter_map(points)
+                .collect(),
+            wall: Vec::new(),
+        }
+    }
+
+    /// A handle `simplify` removed: the loop it closed, and its wall.
+    pub fn from_removed(id: usize, r: &Removed) -> HtmlHandle {
+        let closed_is_reeb = Some(r.length) == r.reeb && r.reeb <= r.cross;
+        HtmlHandle {
+            id,
+            surface: None,
+            kind: r.kind.name().to_string(),
+            size: Some(r.size),
+            reeb: r.reeb,
+            reeb_mm: closed_is_reeb.then_some(r.length_mm),
+            cross: r.cross,
+            cross_mm: (!closed_is_reeb).then_some(r.length_mm),
+            encloses: Some(
+                match name(&r.operation).as_str() {
+                    "collapse" => "void",
+                    _ => "material",
+                }
+                .to_string(),
+            ),
+            status: Some(name(&r.operation)),
+            detail: Some(format!("{} ({} samples)", r.wall, r.samples_changed)),
+            bbox: loop_and_wall_box(r),
+            loops: vec![r.points.clone()],
+            wall: r.samples.clone(),
+        }
+    }
+
+    /// A handle `simplify` kept.
+    pub fn from_kept(id: usize, k: &Kept) -> HtmlHandle {
+        HtmlHandle {
+            id,
+            surface: None,
+            kind: k.kind.name().to_string(),
+            size: k.size,
+            reeb: k.reeb,
+            cross: k.cross,
+            status: Some("kept".into()),
+            detail: Some(name(&k.reason).replace('_', " ")),
+            bbox: bbox6(&k.bbox),
+            ..HtmlHandle::default()
+        }
+    }
+}
+
+/// An enum's name in the reports (its serde name).
+fn name(v: &impl serde::Serialize) -> String {
+    match serde_json::to_value(v) {
+        Ok(Value::String(s)) => s,
+        _ => String::new(),
+    }
+}
+
+/// The box of a removal's closed loop and wall: what its close-up shows (the box of both loops,
+/// `r.bbox`, runs along the other loop, often far longer).
+fn loop_and_wall_box(r: &Removed) -> [i64; 6] {
+    let mut b = [i64::MAX, i64::MAX, i64::MAX, i64::MIN, i64::MIN, i64::MIN];
+    let points = r.points.iter().map(|p| p.map(|v| v.floor() as i64));
+    let ceil = r.points.iter().map(|p| p.map(|v| v.ceil() as i64));
+    for p in points.chain(ceil).chain(r.samples.iter().copied()) {
+        for a in 0..3 {
+            b[a] = b[a].min(p[a]);
+            b[a + 3] = b[a + 3].max(p[a]);
+        }
+    }
+    if b[0] > b[3] {
+        return bbox6(&r.bbox);
+    }
+    b
+}
+
+fn bbox6(b: &BBox) -> [i64; 6] {
+    [b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]]
+}
+
+fn file_name(info: &VolumeInfo) -> String {
+    info.path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_else(|| info.path.display().to_string())
+}
+
+/// The lines every report starts with: the volume and the surface.
+fn volume_lines(
+    info: &VolumeInfo,
+    surface: &crate::topology::SurfaceOptions,
+) -> Vec<(String, String)> {
+    let [sx, sy, sz] = info.spacing();
+    let [nx, ny, nz] = info.dims;
+    vec![
+        ("volume".into(), info.path.display().to_string()),
+        (
+            "grid".into(),
+            format!(
+                "{nx} × {ny} × {nz} samples of {}, spacing {sx:.3} × {sy:.3} × {sz:.3} mm",
+                info.dtype
+            ),
+        ),
+        (
+            "isosurface".into(),
+            format!(
+                "iso {}, inside {} it, connectivity {}",
+                surface.iso,
+                surface.inside.name(),
+                surface.connectivity.number()
+            ),
+        ),
+    ]
+}
+
+impl HtmlReport {
+    /// The report of an analysis whose handles (from [`HtmlHandle::from_analysis_json`]) are
+    /// `handles`.
+    pub fn analysis(
+        a: &StreamedAnalysis,
+        opts: &AnalyzeOptions,
+        handles: Vec<HtmlHandle>,
+    ) -> HtmlReport {
+        let mut summary = volume_lines(&a.info, &opts.surface);
+        let reeb = handles.iter().filter(|h| h.kind == "reeb_cycle").count();
+        summary.push((
+            "handles".into(),
+            format!(
+                "{} ({} Reeb cycles, {} intra-ribbon) on {} surfaces; genus from the Euler characteristic {}",
+                handles.len(),
+                reeb,
+                handles.len() - reeb,
+                a.surfaces.len(),
+                a.genus
+            ),
+        ));
+        if let Some(t) = opts.tau.filter(|t| t.is_finite()) {
+            summary.push(("search limit".into(), format!("tau {t} voxel edges")));
+        }
+        summary.push((
+            "time".into(),
+            format!(
+                "{:.2} s ({:.2} s sweep, sweep axis {})",
+                a.seconds,
+                a.seconds_sweep,
+                a.axis.name()
+            ),
+        ));
+        HtmlReport {
+            kind: ReportKind::Analyze,
+            title: file_name(&a.info),
+            summary,
+            tau: opts.tau,
+            handle_count: handles.len(),
+            handles,
+        }
+    }
+
+    /// The report of a simplification: its handles removed, then kept.
+    pub fn simplified(s: &Simplified, opts: &SimplifyOptions) -> HtmlReport {
+        let o = &s.outcome;
+        let mut summary = volume_lines(&s.info, &opts.surface);
+        let betti = |g: &crate::topology::genus::GenusReport| {
+            format!("b0 {}, genus {}, b2 {}", g.b0, g.b1, g.b2)
+        };
+        summary.push(("before".into(), betti(&s.before)));
+        summary.push(("after".into(), betti(&s.after)));
+        let unit = match opts.metric {
+            crate::loops::Metric::Millimetres => "mm",
+            crate::loops::Metric::Edges => "voxel edges",
+        };
+        summary.push(("tau".into(), format!("{} {unit}", opts.tau)));
+        let by = |op: &str| {
+            o.removed
+                .iter()
+                .filter(|r| name(&r.operation) == op)
+                .count()
+        };
+        summary.push((
+            "handles removed".into(),
+            format!(
+                "{} ({} by collapse: a wall filling a loop round void; {} by pinch: a cut across material)",
+                o.removed.len(),
+                by("collapse"),
+                by("pinch")
+            ),
+        ));
+        summary.push(("handles kept".into(), o.kept.len().to_string()));
+        summary.push(("samples changed".into(), o.edits.len().to_string()));
+        if let Some(c) = &o.composition {
+            summary.push((
+                "well-composed".into(),
+                format!(
+                    "{} critical configurations before, {} left; {} samples flipped",
+                    c.before.total(),
+                    c.left.total(),
+                    c.flips.len()
+                ),
+            ));
+        }
+        summary.push((
+            "time".into(),
+            format!(
+                "{:.2} s reading, {:.2} s simplifying",
+                s.seconds_read, s.seconds_simplify
+            ),
+        ));
+        let removed = o
+            .removed
+            .iter()
+            .enumerate()
+            .map(|(i, r)| HtmlHandle::from_removed(i, r));
+        let kept = o
+            .kept
+            .iter()
+            .enumerate()
+            .map(|(i, k)| HtmlHandle::from_kept(o.removed.len() + i, k));
+        let handles: Vec<HtmlHandle> = removed.chain(kept).collect();
+        HtmlReport {
+            kind: ReportKind::Simplify,
+            title: file_name(&s.info),
+            summary,
+            tau: (unit == "voxel edges").then_some(opts.tau),
+            handle_count: handles.len(),
+            handles,
+        }
+    }
+}
