@@ -59,3 +59,14 @@ pub(crate) fn num(x: f64) -> String {
 pub(crate) fn to_json(v: &impl serde::Serialize) -> Result<String> {
     serde_json::to_string_pretty(v).map_err(|e| Error::Internal(e.to_string()))
 }
+
+/// The line naming the HTML report: where, how big, how many handles in 3D.
+pub(crate) fn print_html(path: &std::path::Path, w: &isotopo::html::HtmlWritten) {
+    println!(
+        "html        {} ({:.1} MB; {} handles in 3D, {} triangles)",
+        path.display(),
+        w.bytes as f64 / 1e6,
+        w.scenes,
+        group(w.triangles as u64)
+    );
+}

@@ -41,6 +41,10 @@ pub(crate) struct AnalyzeArgs {
     /// Write a histogram of handle sizes and a Reeb vs cross loop scatter plot (SVG and PNG).
     #[arg(long, value_name = "DIR")]
     plots: Option<PathBuf>,
+    /// Write a self-contained HTML report (opens offline in any browser): summary, interactive
+    /// plots with a tau slider, a sortable table of the handles, each in 3D with its loops.
+    #[arg(long, value_name = "OUT.html")]
+    html: Option<PathBuf>,
     /// List every handle, not only the 30 largest.
     #[arg(long)]
     all: bool,
@@ -61,8 +65,11 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     let axis = a.sweep.axis.axis();
     let reader = a.input.open()?;
     let info = reader.info().clone();
-    if let Some(p) = &a.loops {
+    for p in a.loops.iter().chain(a.html.iter()) {
         volume::check_output_path(p, &info)?;
+    }
+    if a.loops.is_some() && a.loops == a.html {
+        return Err(Error::usage("--loops and --html name the same file"));
     }
     let positive = |t: Option<f64>, flag: &str| match t {
         Some(t) if t.is_nan() || t <= 0.0 => {
@@ -101,7 +108,8 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     let text = !(a.json || a.csv);
     // First pass: the files, and what the text summary needs.
     let mut summary = Summary::new(if a.all { usize::MAX } else { 30 });
-    if a.loops.is_some() || a.plots.is_some() || text {
+    let mut rows = Vec::new();
+    if a.loops.is_some() || a.plots.is_some() || a.html.is_some() || text {
         let mut loops = a.loops.as_deref().map(LoopsWriter::create).transpose()?;
         let mut points = std::collections::BTreeMap::new();
         while let Some(h) = analysis.next_handle()? {
@@ -117,6 +125,9 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
             }
             if text {
                 summary.add(&h, tau);
+            }
+            if a.html.is_some() {
+                rows.push(isotopo::html::HtmlHandle::from_analysis_json(&h));
             }
         }
         if let Some(w) = loops {
@@ -136,6 +147,21 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
         }
         analysis.rewind();
     }
+    let html = match &a.html {
+        Some(p) => {
+            let report = isotopo::html::HtmlReport::analysis(&analysis, &aopts, rows);
+            let mut reader = a.input.open()?;
+            let opts = isotopo::html::HtmlOptions::default();
+            Some(isotopo::html::write_analysis(
+                p,
+                &report,
+                reader.as_mut(),
+                &aopts.surface,
+                &opts,
+            )?)
+        }
+        None => None,
+    };
     if a.json {
         let mut out = std::io::BufWriter::new(std::io::stdout().lock());
         analysis.write_json(&aopts, true, &mut out)?;
@@ -154,6 +180,9 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     summary.print(&analysis, tau);
     if let Some(p) = &a.loops {
         println!("loops       {}", p.display());
+    }
+    if let (Some(p), Some(w)) = (&a.html, &html) {
+        print_html(p, w);
     }
     for f in &summary.plot_files {
         println!("plot        {}", f.display());

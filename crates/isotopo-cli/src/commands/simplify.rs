@@ -75,6 +75,11 @@ pub(crate) struct SimplifyArgs {
     /// Write a JSON report (genus before/after, every removed and kept handle).
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
+    /// Write a self-contained HTML report (opens offline in any browser): summary, interactive
+    /// plots with a tau slider, the handles removed and kept, each in 3D before and after with
+    /// its wall's samples.
+    #[arg(long, value_name = "OUT.html")]
+    html: Option<PathBuf>,
     /// Print the JSON report to stdout instead of the summary.
     #[arg(long)]
     json: bool,
@@ -130,6 +135,7 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     let mut outputs = vec![&a.output];
     outputs.extend(a.mesh.iter());
     outputs.extend(a.report.iter());
+    outputs.extend(a.html.iter());
     for (i, p) in outputs.iter().enumerate() {
         volume::check_output_path(p, &info)?;
         if outputs[..i].contains(p) {
@@ -159,6 +165,16 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
         mesh.write(p)?;
         mesh_genus = Some(mesh.closed_euler_characteristic());
     }
+    let html = match &a.html {
+        Some(p) => {
+            let report = isotopo::html::HtmlReport::simplified(&done, &sopts);
+            let opts = isotopo::html::HtmlOptions::default();
+            Some(isotopo::html::write_simplified(
+                p, &report, &mut done, &surface, &opts,
+            )?)
+        }
+        None => None,
+    };
     let secs = t0.elapsed().as_secs_f64();
     let mut v = done.report(&sopts);
     let extra = serde_json::json!({
@@ -289,6 +305,9 @@ pub(crate) fn run(a: SimplifyArgs) -> Result<()> {
     }
     if let Some(p) = &a.report {
         println!("report      {}", p.display());
+    }
+    if let (Some(p), Some(w)) = (&a.html, &html) {
+        print_html(p, w);
     }
     println!(
         "time        {:.2} s ({:.2} s read, {:.2} s simplify, {:.2} s write)",
