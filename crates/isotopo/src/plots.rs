@@ -70,6 +70,47 @@ pub fn write(
 
 const SIZE: (u32, u32) = (900, 600);
 
+/// A log axis's label: only at 1, 2 and 5 times a power of ten (and not below `min`), so that
+/// labels never crowd (90 beside 100).
+fn log_label(v: f64, min: f64) -> String {
+    if v < min || v <= 0.0 {
+        return String::new();
+    }
+    let p = 10f64.powf(v.log10().floor());
+    let m = v / p;
+    if [1.0, 2.0, 5.0].iter().any(|&n| (m - n).abs() < 1e-6) {
+        format!("{v:.0}")
+    } else {
+        String::new()
+    }
+}
+
+/// Where simplifying with `tau` cuts an axis of integer sizes: between the largest size that
+/// goes (below tau) and the smallest that stays.
+fn cut_at(tau: f64) -> f64 {
+    tau.ceil() - 0.5
+}
+
+/// The range of tau giving the same result as `tau` on these sizes (the paper's figure 11):
+/// from just above the largest size below tau to the smallest size at or above it, as cut
+/// positions (`None` above: no size at or above tau).
+fn same_result(sizes: &[(usize, usize)], tau: f64) -> (f64, Option<f64>) {
+    let below = sizes
+        .iter()
+        .map(|s| s.0)
+        .filter(|&s| (s as f64) < tau)
+        .max();
+    let above = sizes
+        .iter()
+        .map(|s| s.0)
+        .filter(|&s| (s as f64) >= tau)
+        .min();
+    (
+        below.map_or(2.5, |b| b as f64 + 0.5),
+        above.map(|a| a as f64 - 0.5),
+    )
+}
+
 /// The two plots.
 #[derive(Clone, Copy)]
 enum Plot {
@@ -187,11 +228,33 @@ fn draw_histogram<DB: DrawingBackend>(
         .y_desc("handles")
         .label_style((FONT, 16))
         .axis_desc_style((FONT, 18))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| log_label(*v, 3.0))
+        .y_label_formatter(&|v| log_label(*v, 1.0))
         .disable_x_mesh()
         .light_line_style(WHITE)
         .draw()?;
+    let tau = tau.filter(|t| t.is_finite());
+    let right = *edges.last().unwrap();
+    if let Some(t) = tau {
+        // The band first: the bars show through it.
+        let (lo, hi) = same_result(&sizes, t);
+        let hi = hi.unwrap_or(right).min(right);
+        let pink = RGBColor(246, 211, 211);
+        if hi > lo {
+            let upto = if hi == right {
+                "inf".to_string()
+            } else {
+                format!("{}", hi + 0.5)
+            };
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(lo, 0.8), (hi, top)],
+                    pink.filled(),
+                )))?
+                .label(format!("same result for any tau in {}..{upto}", lo + 0.5))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], pink.filled()));
+        }
+    }
     chart.draw_series(
         counts
             .iter()
@@ -205,13 +268,14 @@ fn draw_histogram<DB: DrawingBackend>(
                 )
             }),
     )?;
-    if let Some(t) = tau.filter(|t| t.is_finite()) {
+    if let Some(t) = tau {
+        let x = cut_at(t).max(2.5);
         chart
             .draw_series(LineSeries::new(
-                vec![(t, 0.8), (t, top)],
+                vec![(x, 0.8), (x, top)],
                 RED.stroke_width(2),
             ))?
-            .label(format!("tau = {t}"))
+            .label(format!("tau = {t}: handles left of the line go"))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
         chart
             .configure_series_labels()
@@ -250,15 +314,16 @@ fn draw_scatter<DB: DrawingBackend>(
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .build_cartesian_2d((2.5f64..max).log_scale(), (2.5f64..max).log_scale())?;
+        // From 2: the shortest loops (3 edges) sit inside the frame, not on its edges.
+        .build_cartesian_2d((2f64..max).log_scale(), (2f64..max).log_scale())?;
     chart
         .configure_mesh()
         .x_desc("Reeb loop (voxel edges)")
         .y_desc("cross loop (voxel edges)")
         .label_style((FONT, 16))
         .axis_desc_style((FONT, 18))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| log_label(*v, 2.0))
+        .y_label_formatter(&|v| log_label(*v, 2.0))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()?;
     let blue = RGBColor(40, 80, 200);
@@ -281,7 +346,7 @@ fn draw_scatter<DB: DrawingBackend>(
     if let Some(t) = tau.filter(|t| t.is_finite()) {
         chart
             .draw_series(LineSeries::new(
-                vec![(t, 2.5), (t, t), (2.5, t)],
+                vec![(cut_at(t), 2.0), (cut_at(t), cut_at(t)), (2.0, cut_at(t))],
                 RED.stroke_width(2),
             ))?
             .label(format!(
@@ -297,4 +362,63 @@ fn draw_scatter<DB: DrawingBackend>(
         .border_style(BLACK)
         .draw()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_labels_only_at_one_two_five() {
+        let shown: Vec<String> = [1.0, 2.0, 3.0, 5.0, 9.0, 10.0, 20.0, 90.0, 100.0, 500.0]
+            .iter()
+            .map(|&v| log_label(v, 2.0))
+            .collect();
+        assert_eq!(shown, ["", "2", "", "5", "", "10", "20", "", "100", "500"]);
+    }
+
+    #[test]
+    fn tau_cuts_between_sizes_and_the_band_spans_the_same_results() {
+        // Sizes 3 (x5), 8, 19, 40: tau 20 removes 3, 8, 19; so does any tau in 20..=40.
+        let sizes = [(3, 5), (8, 1), (19, 1), (40, 1)];
+        assert_eq!(cut_at(20.0), 19.5);
+        assert_eq!(cut_at(19.2), 19.5, "19 < 19.2: size 19 goes");
+        assert_eq!(same_result(&sizes, 20.0), (19.5, Some(39.5)));
+        assert_eq!(same_result(&sizes, 50.0), (40.5, None));
+        assert_eq!(same_result(&sizes, 3.0), (2.5, Some(2.5)), "nothing goes");
+    }
+
+    #[test]
+    fn both_plots_are_written_with_a_tau_and_without() {
+        let dir = tempfile::tempdir().unwrap();
+        let points = [
+            PlotPoint {
+                reeb: Some(3),
+                cross: Some(4),
+                void: false,
+                count: 40,
+            },
+            PlotPoint {
+                reeb: Some(90),
+                cross: Some(100),
+                void: true,
+                count: 1,
+            },
+            PlotPoint {
+                reeb: Some(12),
+                cross: None,
+                void: false,
+                count: 2,
+            },
+        ];
+        for tau in [Some(20.0), None] {
+            let files = write(dir.path(), "t", &points, tau).unwrap();
+            assert_eq!(files.len(), 4);
+            let svg = std::fs::read_to_string(dir.path().join("histogram.svg")).unwrap();
+            assert_eq!(
+                svg.contains("same result for any tau in 13..90"),
+                tau.is_some()
+            );
+        }
+    }
 }

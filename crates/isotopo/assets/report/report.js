@@ -115,7 +115,9 @@ function setTau(tau) {
   const [lo, hi] = sameResult(tau);
   document.getElementById('tau-range').textContent = hi === Infinity
     ? `Any tau above ${lo} gives the same result.`
-    : `Any tau from ${lo + 1} to ${hi} gives the same result (no handle has a size in between).`;
+    : lo + 1 === hi
+      ? `Only tau ${hi} removes exactly these handles (sizes ${lo} and ${hi} are both taken).`
+      : `Any tau from ${lo + 1} to ${hi} gives the same result (no handle has a size in between).`;
   renderHistogram();
   renderScatter();
   renderTable();
@@ -657,7 +659,7 @@ function showHandle(h) {
 function wallPoints(flat) {
   const T = state.THREE;
   const g = new T.BufferGeometry();
-  g.setAttribute('position', new T.Float32BufferAttribute(flat.map(Number), 3));
+  g.setAttribute('position', new T.Float32BufferAttribute(flat.map(v => v / 2), 3));
   return new T.Points(g, new T.PointsMaterial({ color: COLOURS.wall, size: 7, sizeAttenuation: false, depthTest: false }));
 }
 

@@ -119,11 +119,19 @@ impl Blob {
 
 /// `bytes` gzip-compressed, in base64 (the report's encoding of everything large).
 pub(crate) fn gzip_base64(bytes: &[u8]) -> String {
-    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     // Writing to a Vec cannot fail.
-    let _ = gz.write_all(bytes);
-    let packed = gz.finish().unwrap_or_default();
-    base64::engine::general_purpose::STANDARD.encode(packed)
+    gzip_base64_with(|w| w.write_all(bytes)).unwrap_or_default()
+}
+
+/// What `write` writes, gzip-compressed as it goes (only the compressed bytes are held), in
+/// base64.
+pub(crate) fn gzip_base64_with(
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<String> {
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    write(&mut gz)?;
+    let packed = gz.finish()?;
+    Ok(base64::engine::general_purpose::STANDARD.encode(packed))
 }
 
 #[cfg(test)]

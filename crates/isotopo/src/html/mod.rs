@@ -46,9 +46,12 @@ pub struct HtmlOptions {
     /// Samples of all the bricks together (each meshed once, however many handles it shows);
     /// handles beyond show on the overview only. Default 6,000,000.
     pub max_box_samples: usize,
-    /// Bytes of mesh arrays (before compression, about 4 to 1) past which no more close-ups are
-    /// meshed. Default 24 MB.
+    /// Bytes of mesh arrays (before compression, about 2 to 1) past which no more close-ups are
+    /// meshed. Default 8 MB.
     pub max_mesh_bytes: usize,
+    /// Triangles of the overview at most: past them it is coarsened twice as much, again if
+    /// need be. Default 250,000.
+    pub max_overview_triangles: usize,
     /// Largest side (samples) of the coarsened volume the overview meshes. Default 96.
     pub overview_side: usize,
     /// Loop points kept in all (the smallest handles' first); handles beyond are listed
@@ -61,7 +64,8 @@ impl Default for HtmlOptions {
         HtmlOptions {
             box_side: 48,
             max_box_samples: 6_000_000,
-            max_mesh_bytes: 24_000_000,
+            max_mesh_bytes: 8_000_000,
+            max_overview_triangles: 250_000,
             overview_side: 96,
             max_loop_points: 300_000,
         }
@@ -221,11 +225,7 @@ fn write(
         let before = mesh(c.before, c.dims, offset, &mut blob)?;
         meshed.push(serde_json::json!({ "before": before, "after": after }));
     }
-    let overview = [0, 1]
-        .iter()
-        .take(if after { 2 } else { 1 })
-        .map(|&w| scene::mesh_coarse(&gather.coarse, w, opts, &mut blob))
-        .collect::<Result<Vec<_>>>()?;
+    let overview = overview_meshes(&mut gather.coarse, after, opts, html, &mut blob)?;
     triangles += overview.iter().map(|m| m.t[1]).sum::<usize>();
     let mut bricks_of = plan.bricks_of;
     for b in bricks_of.iter_mut() {
@@ -243,16 +243,56 @@ fn write(
         bricks: meshed,
         of: bricks_of,
     };
-    let data = data_json(report, info, &order, &scenes, overview, html);
-    let text = fill_template(report, &data, &blob);
+    let m = &info.affine.m;
+    let data = Data {
+        kind: report.kind,
+        title: &report.title,
+        summary: &report.summary,
+        tau: report.tau.filter(|t| t.is_finite()),
+        handle_count: report.handle_count,
+        dims: info.dims,
+        affine: [m[0], m[1], m[2], [0.0, 0.0, 0.0, 1.0]],
+        handles: Rows {
+            report,
+            scenes: &scenes,
+            with_loops: with_loops(report, &order, html),
+        },
+        bricks: &scenes.bricks,
+        overview: &overview.meshes,
+        overview_factor: overview.factor,
+        version: env!("CARGO_PKG_VERSION"),
+    };
     let mut out = AtomicOutput::create(path, Compression::None)?;
-    out.write_all(text.as_bytes())?;
+    write_page(&mut out, report, &data, &blob)?;
     out.commit()?;
+    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     Ok(HtmlWritten {
-        bytes: text.len() as u64,
+        bytes,
         scenes: scenes.of.iter().flatten().count(),
         triangles,
     })
+}
+
+/// The coarse whole surface, before (and after), coarsened further while it has too many
+/// triangles (a volume of noise is surface everywhere).
+fn overview_meshes(
+    coarse: &mut Coarse,
+    after: bool,
+    opts: &SurfaceOptions,
+    html: &HtmlOptions,
+    blob: &mut Blob,
+) -> Result<Vec<MeshRef>> {
+    loop {
+        let mut trial = Blob::default();
+        let first = scene::mesh_coarse(coarse, 0, opts, &mut trial)?;
+        if first.t[1] <= html.max_overview_triangles || coarse.dims.iter().all(|&d| d <= 8) {
+            break;
+        }
+        coarse.halve();
+    }
+    (0..if after { 2 } else { 1 })
+        .map(|w| scene::mesh_coarse(coarse, w, opts, blob))
+        .collect()
 }
 
 /// Handle indices, smallest first (no loop within the limit: last), then by id.
@@ -274,18 +314,63 @@ struct Overview {
     factor: usize,
 }
 
-/// The page's data: everything but the meshes' arrays.
-fn data_json(
-    report: &HtmlReport,
-    info: &VolumeInfo,
-    order: &[usize],
-    scenes: &Scenes,
-    overview: Overview,
-    html: &HtmlOptions,
-) -> serde_json::Value {
-    // Loops for the smallest handles first, within the budget; as doubled integers (the points
-    // are on half-integers), flat.
-    let mut with_loops = vec![false; report.handles.len()];
+/// The page's data: everything but the meshes' arrays (see `report.js`).
+#[derive(serde::Serialize)]
+struct Data<'a> {
+    kind: ReportKind,
+    title: &'a str,
+    summary: &'a [(String, String)],
+    tau: Option<f64>,
+    handle_count: usize,
+    dims: [usize; 3],
+    affine: [[f64; 4]; 4],
+    handles: Rows<'a>,
+    bricks: &'a [serde_json::Value],
+    overview: &'a [MeshRef],
+    overview_factor: usize,
+    version: &'static str,
+}
+
+/// A handle's row: its fields, its bricks, and its loops and wall (doubled voxel coordinates,
+/// flat) when within the budget.
+#[derive(serde::Serialize)]
+struct Row<'a> {
+    #[serde(flatten)]
+    handle: &'a HtmlHandle,
+    bricks: &'a Option<Vec<usize>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    loops: Option<Vec<Vec<i64>>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    wall: Option<Vec<i64>>,
+}
+
+/// Every handle's row, made as it is serialized (no value tree of 100,000 handles in memory).
+struct Rows<'a> {
+    report: &'a HtmlReport,
+    scenes: &'a Scenes,
+    with_loops: Vec<bool>,
+}
+
+impl serde::Serialize for Rows<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(self.report.handles.len()))?;
+        for (i, h) in self.report.handles.iter().enumerate() {
+            let drawn = self.with_loops[i];
+            seq.serialize_element(&Row {
+                handle: h,
+                bricks: &self.scenes.of[i],
+                loops: drawn.then(|| h.loops.iter().map(|l| doubled(l)).collect()),
+                wall: drawn.then(|| h.wall.iter().flatten().map(|&v| 2 * v).collect()),
+            })?;
+        }
+        seq.end()
+    }
+}
+
+/// Which handles keep their loops: the smallest first, within [`HtmlOptions::max_loop_points`].
+fn with_loops(report: &HtmlReport, order: &[usize], html: &HtmlOptions) -> Vec<bool> {
+    let mut with = vec![false; report.handles.len()];
     let mut points = 0;
     for &i in order {
         let n: usize = report.handles[i].loops.iter().map(Vec::len).sum();
@@ -293,38 +378,9 @@ fn data_json(
             break;
         }
         points += n;
-        with_loops[i] = true;
+        with[i] = true;
     }
-    let handles: Vec<serde_json::Value> = report
-        .handles
-        .iter()
-        .enumerate()
-        .map(|(i, h)| {
-            let mut v = serde_json::to_value(h).unwrap_or_default();
-            v["bricks"] = serde_json::json!(scenes.of[i]);
-            if with_loops[i] {
-                v["loops"] =
-                    serde_json::json!(h.loops.iter().map(|l| doubled(l)).collect::<Vec<_>>());
-                v["wall"] = serde_json::json!(h.wall.iter().flatten().collect::<Vec<_>>());
-            }
-            v
-        })
-        .collect();
-    let m = &info.affine.m;
-    serde_json::json!({
-        "kind": report.kind,
-        "title": report.title,
-        "summary": report.summary,
-        "tau": report.tau.filter(|t| t.is_finite()),
-        "handle_count": report.handle_count,
-        "dims": info.dims,
-        "affine": [m[0], m[1], m[2], [0.0, 0.0, 0.0, 1.0]],
-        "handles": handles,
-        "bricks": scenes.bricks,
-        "overview": overview.meshes,
-        "overview_factor": overview.factor,
-        "version": env!("CARGO_PKG_VERSION"),
-    })
+    with
 }
 
 fn doubled(points: &[[f64; 3]]) -> Vec<i64> {
@@ -341,18 +397,32 @@ const SCRIPT: &str = include_str!("../../assets/report/report.js");
 const THREE: &str = include_str!("../../assets/viewer/three.bundle.js");
 const THREE_LICENSE: &str = include_str!("../../assets/viewer/LICENSE-three.txt");
 
-fn fill_template(report: &HtmlReport, data: &serde_json::Value, blob: &Blob) -> String {
-    let data = blob::gzip_base64(data.to_string().as_bytes());
-    let three = blob::gzip_base64(THREE.as_bytes());
-    // The title last: a file name may hold anything, markers included.
-    TEMPLATE
-        .replace("{{CSS}}", CSS)
-        .replace("{{THREE_LICENSE}}", &escape(THREE_LICENSE))
-        .replace("{{THREE}}", &three)
-        .replace("{{DATA}}", &data)
-        .replace("{{BIN}}", &blob.to_base64_gzip())
-        .replace("{{SCRIPT}}", SCRIPT)
-        .replace("{{TITLE}}", &escape(&report.title))
+/// Writes the page: the template with its markers filled, piece by piece (the data and the
+/// meshes go straight from their encoders to the file).
+fn write_page(out: &mut AtomicOutput, report: &HtmlReport, data: &Data, blob: &Blob) -> Result<()> {
+    let mut rest = TEMPLATE;
+    while let Some(at) = rest.find("{{") {
+        out.write_all(rest[..at].as_bytes())?;
+        let end = at + rest[at..].find("}}").unwrap_or(0) + 2;
+        match &rest[at..end] {
+            "{{CSS}}" => out.write_all(CSS.as_bytes())?,
+            "{{SCRIPT}}" => out.write_all(SCRIPT.as_bytes())?,
+            "{{TITLE}}" => out.write_all(escape(&report.title).as_bytes())?,
+            "{{THREE_LICENSE}}" => out.write_all(escape(THREE_LICENSE).as_bytes())?,
+            "{{THREE}}" => out.write_all(blob::gzip_base64(THREE.as_bytes()).as_bytes())?,
+            "{{DATA}}" => {
+                let text = blob::gzip_base64_with(|w| {
+                    serde_json::to_writer(w, data).map_err(std::io::Error::other)
+                })
+                .map_err(|e| crate::error::Error::Internal(format!("report data: {e}")))?;
+                out.write_all(text.as_bytes())?
+            }
+            "{{BIN}}" => out.write_all(blob.to_base64_gzip().as_bytes())?,
+            other => out.write_all(other.as_bytes())?,
+        }
+        rest = &rest[end..];
+    }
+    out.write_all(rest.as_bytes())
 }
 
 /// `text` safe in HTML text and attribute values.

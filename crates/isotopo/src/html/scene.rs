@@ -96,6 +96,31 @@ impl Coarse {
         }
     }
 
+    /// Twice as coarse: blocks of 2×2×2 of these merged.
+    pub fn halve(&mut self) {
+        let [cx, cy, cz] = self.dims;
+        let nd = self.dims.map(|d| d.div_ceil(2));
+        let n = nd.iter().product();
+        let mut sums = [vec![0.0; n], vec![0.0; if self.with_after { n } else { 0 }]];
+        let mut counts = vec![0; n];
+        for z in 0..cz {
+            for y in 0..cy {
+                for x in 0..cx {
+                    let from = (z * cy + y) * cx + x;
+                    let to = ((z / 2) * nd[1] + y / 2) * nd[0] + x / 2;
+                    counts[to] += self.counts[from];
+                    for w in 0..if self.with_after { 2 } else { 1 } {
+                        sums[w][to] += self.sums[w][from];
+                    }
+                }
+            }
+        }
+        self.sums = sums;
+        self.counts = counts;
+        self.dims = nd;
+        self.factor *= 2;
+    }
+
     /// The averages, before (`which` 0) or after (1).
     fn values(&self, which: usize) -> Vec<f32> {
         self.sums[which]
@@ -309,5 +334,9 @@ mod tests {
         }
         // Block x 0..3 averages 0, 1, 2; block x 3..5 averages 3, 4.
         assert_eq!(c.values(0), vec![1.0, 3.5, 1.0, 3.5]);
+        // Halved: one block of everything, weighted by the samples in each.
+        c.halve();
+        assert_eq!((c.factor, c.dims), (6, [1, 1, 1]));
+        assert_eq!(c.values(0), vec![2.0]);
     }
 }
