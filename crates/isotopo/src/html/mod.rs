@@ -402,7 +402,7 @@ const THREE_LICENSE: &str = include_str!("../../assets/viewer/LICENSE-three.txt"
 fn write_page(out: &mut AtomicOutput, report: &HtmlReport, data: &Data, blob: &Blob) -> Result<()> {
     let mut rest = TEMPLATE;
     while let Some(at) = rest.find("{{") {
-        out.write_all(rest[..at].as_bytes())?;
+        out.write_all(&rest.as_bytes()[..at])?;
         let end = at + rest[at..].find("}}").unwrap_or(0) + 2;
         match &rest[at..end] {
             "{{CSS}}" => out.write_all(CSS.as_bytes())?,
