@@ -63,7 +63,12 @@ try {
     `moving the slider changes the counts (tau ${tauLow}: ${low[0]} go; tau ${tauHigh}: ${high[0]} go)`);
   check(Number(high[1]) === 0 || (await page.evaluate(() => state.data.handles.some(h => h.size === Infinity))),
     `at the largest tau every measured handle goes (${high[1]} stay)`);
-  await page.locator('#tau').fill(String(Math.round(Number(max) / 2)));
+  // Back to tau 20 (the screenshots show it).
+  await page.evaluate(() => {
+    const s = document.getElementById('tau');
+    s.value = String(sliderAt(20));
+    s.dispatchEvent(new Event('input'));
+  });
 
   // The first row of the table, sorted by size: the smallest handle.
   await page.click('#handles tbody tr');
@@ -71,7 +76,11 @@ try {
   const caption = await page.textContent('#view-caption');
   check(/^Handle \d+/.test(caption), `clicking a row shows it in 3D ("${caption.slice(0, 60)}…")`);
   if (screenshot) {
-    await page.screenshot({ path: screenshot, fullPage: true });
+    // The summary, the plots and the 3D view (the table starts below).
+    await page.setViewportSize({ width: 1280, height: 1720 });
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.waitForTimeout(500);
+    await page.screenshot({ path: screenshot });
     console.log(`  screenshot ${screenshot}`);
   }
   const pixels = await page.evaluate(() => {

@@ -532,13 +532,35 @@ function loopLines(loops, colours) {
   return new T.LineSegments(g, new T.LineBasicMaterial({ vertexColors: true, depthTest: false }));
 }
 
+/// Closed loops of doubled voxel coordinates as thin tubes (a close-up: lines would be one pixel
+/// wide), one colour per loop; drawn over the surface.
+function loopTubes(loops, colours, radius) {
+  const T = state.THREE;
+  const group = new T.Group();
+  const up = new T.Vector3(0, 1, 0);
+  loops.forEach((flat, k) => {
+    const material = new T.MeshBasicMaterial({ color: colours[k], depthTest: false });
+    const n = flat.length / 3;
+    const at = i => new T.Vector3(flat[3 * i] / 2, flat[3 * i + 1] / 2, flat[3 * i + 2] / 2);
+    for (let i = 0; i < n; i++) {
+      const a = at(i), b = at((i + 1) % n);
+      const along = b.clone().sub(a);
+      const tube = new T.Mesh(new T.CylinderGeometry(radius, radius, along.length(), 8), material);
+      tube.position.copy(a).add(b).multiplyScalar(0.5);
+      tube.quaternion.copy(new T.Quaternion().setFromUnitVectors(up, along.normalize()));
+      tube.renderOrder = 1;
+      group.add(tube);
+    }
+  });
+  return group;
+}
+
 function clearViews() {
   for (const v of state.views) {
     for (const child of [...v.root.children]) {
       v.root.remove(child);
       if (child.userData.shared) continue;
-      child.geometry?.dispose();
-      child.material?.dispose();
+      child.traverse(o => { o.geometry?.dispose(); o.material?.dispose(); });
     }
   }
 }
@@ -640,13 +662,14 @@ function showHandle(h) {
       v.root.add(surface(`overview ${k}`, d.overview[k], colour));
     }
     const loops = handleLoops(h);
-    if (loops.length) v.root.add(loopLines(loops.map(l => l[0]), loops.map(l => l[1])));
+    const radius = Math.max(0.05, Math.max(...h.bbox.slice(3).map((v, a) => v - h.bbox[a])) / 60);
+    if (loops.length) v.root.add(loopTubes(loops.map(l => l[0]), loops.map(l => l[1]), radius));
     if (h.wall && h.wall.length) v.root.add(wallPoints(h.wall));
   });
-  const min = h.bbox.slice(0, 3), max = h.bbox.slice(3);
-  if (scene && document.getElementById('clip').checked) clipTo(min.map(v => v - 4), max.map(v => v + 4));
-  else clipTo(null);
-  frame(min.map(v => v - 2), max.map(v => v + 2), 4);
+  // The box round the handle: 6 voxels beyond its loops (and wall), clipped to and framed.
+  const min = h.bbox.slice(0, 3).map(v => v - 6), max = h.bbox.slice(3).map(v => v + 6);
+  clipTo(scene && document.getElementById('clip').checked ? min : null, max);
+  frame(min, max, 2.2);
   const size = Number.isFinite(h.size) ? h.size : 'beyond the limit';
   document.getElementById('view-caption').textContent =
     `Handle ${h.id}: size ${size}` + (h.status ? `, ${h.status}` : '') +
