@@ -35,8 +35,9 @@ check() { # name volume iso
   echo "== $name: simplify --tau 20 --html"
   "$bin" simplify "$vol" --iso "$iso" --tau 20 -o "$out/$name-simplified.nii.gz" \
     --report "$out/$name-simplify.json" --html "$out/$name-simplify.html" | grep '^html'
+  [ "$shots" = --screenshots ] && shot=(--screenshot "docs/figures/report-$name-simplify.png")
   node scripts/browser/report.test.mjs "$out/$name-simplify.html" \
-    "$(count "$out/$name-simplify.json" 'len(d["removed"]) + len(d["kept"])')"
+    "$(count "$out/$name-simplify.json" 'len(d["removed"]) + len(d["kept"])')" "${shot[@]}"
 }
 
 check mni data/mni2009a-gm.nii.gz 127.5
