@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
@@ -299,8 +300,11 @@ class _Prepared:
     def __init__(self, volume: Any, iso: float, writable: bool):
         #: A loaded file's geometry (its affine's three top rows), for lengths and boxes in mm.
         self.affine: Optional[List[List[float]]] = None
+        #: A loaded file's name: the HTML report's title.
+        self.title: Optional[str] = None
         if isinstance(volume, Volume):
             self.affine = volume.affine[:3].tolist()
+            self.title = os.path.basename(volume.path)
             volume = volume.array
         arr = np.asarray(volume)
         if arr.ndim != 3:
@@ -471,6 +475,7 @@ def analyze(
     tau: Optional[float] = None,
     lengths: str = "edges",
     max_slices: Optional[int] = None,
+    html: Optional[Any] = None,
     progress: Progress = None,
 ) -> List[Handle]:
     """Every handle of the isosurface, each with its Reeb loop (round its tunnel) and cross
@@ -482,10 +487,13 @@ def analyze(
     ``size`` is then at least tau, not necessarily its shortest) and no cross loop.
     ``axis``: the sweep's direction.
     ``max_slices``: planes held in memory at once (the rest in a scratch file).
+    ``html``: also write the HTML report there (the command line's ``analyze --html``: plots
+    with a tau slider, the handles in a table and in 3D; one file, opens offline).
     """
     iso = _check_iso(iso)
     opts = _surface_opts(iso, inside, connectivity)
     opts.update(
+        html=None if html is None else _fspath(html),
         axis=_check_choice("axis", axis, ("x", "y", "z")),
         spacing=_check_spacing(spacing),
         lengths=_check_choice("lengths", lengths, ("edges", "mm", "both")),
@@ -497,6 +505,7 @@ def analyze(
     prep = _Prepared(volume, iso, writable=False)
     _check_bool_iso(prep, iso, inside)
     opts["affine"] = prep.affine if spacing is None else None
+    opts["title"] = prep.title
     d = json.loads(_run(lambda cb: _native.analyze(prep.array, opts, cb), progress))
     return [Handle._from(h) for h in d["handles"]]
 
@@ -542,6 +551,7 @@ def simplify(
     metric: str = "edges",
     well_composed: bool = True,
     max_slices: Optional[int] = None,
+    html: Optional[Any] = None,
     progress: Progress = None,
 ) -> Tuple[np.ndarray, Report]:
     """Removes every handle smaller than ``tau`` and returns ``(array, report)``: a new array
@@ -566,6 +576,8 @@ def simplify(
       ``tau=math.inf``); ``tau`` may then be left out.
     - ``keep_handles``: remove handles from the smallest up until this many are left, whatever
       their size (instead of ``tau``).
+    - ``html``: also write the HTML report there (``simplify --html``: the handles removed and
+      kept, each in 3D before and after with its wall).
 
     Components and cavities change only as asked; the result is checked before it is returned.
     """
@@ -603,12 +615,14 @@ def simplify(
         min_cavity=_check_count("min_cavity", min_cavity),
         fill_cavities=bool(fill_cavities),
         keep_handles=None if keep_handles is None else int(keep_handles),
+        html=None if html is None else _fspath(html),
     )
     if fill_only and cut_only:
         raise ValueError("fill_only and cut_only exclude each other: one, or neither (both)")
     prep = _Prepared(volume, iso, writable=True)
     _check_bool_iso(prep, iso, inside)
     opts["affine"] = prep.affine if spacing is None else None
+    opts["title"] = prep.title
     out = np.array(prep.array, copy=True, order="K")
     d = json.loads(_run(lambda cb: _native.simplify(prep.array, out, opts, cb), progress))
     report = Report(

@@ -169,6 +169,27 @@ fn source(array: &Bound<'_, PyAny>, opts: &Bound<'_, PyDict>) -> PyResult<Source
     Ok(Source::Reader(Box::new(ArrayReader::new(view, info))))
 }
 
+/// Where the HTML report goes (`opts["html"]`, checked now, before the job), a second view of
+/// the volume for its meshes, and its title (`opts["title"]`).
+fn html_target(
+    volume: &Bound<'_, PyAny>,
+    opts: &Bound<'_, PyDict>,
+) -> PyResult<Option<(PathBuf, Source, String)>> {
+    let Some(path) = opt::<Option<PathBuf>>(opts, "html")? else {
+        return Ok(None);
+    };
+    let second = source(volume, opts)?;
+    let view = ArrayView::of(volume)?;
+    let info = array_info(&view, None)?;
+    isotopo::volume::check_output_path(&path, &info)
+        .map_err(|e| to_python(e, &PyProgress::new(None)))?;
+    let title = opt::<Option<String>>(opts, "title")?.unwrap_or_else(|| {
+        let [x, y, z] = info.dims;
+        format!("array {x} × {y} × {z}")
+    });
+    Ok(Some((path, second, title)))
+}
+
 /// b0, b1, b2, chi and the surfaces of the solid (the `genus --json` report).
 #[pyfunction]
 #[pyo3(signature = (volume, opts, progress=None))]
@@ -212,9 +233,18 @@ fn analyze(
         tau_mm: None,
         lengths,
     };
+    // The HTML report reads the volume once more, through a second view of the array.
+    let html = html_target(volume, opts)?;
     run_job(py, volume, opts, progress, |source, p| {
         // Streamed: the report's text is all that is held, not the handles it comes from.
         let mut done = isotopo::analyze_streamed(source, &a, p)?;
+        if let Some((path, second, title)) = html {
+            let rows = isotopo::html::analysis_rows(&mut done)?;
+            let mut report = isotopo::html::HtmlReport::analysis(&done, &a, rows);
+            report.title = title;
+            let o = isotopo::html::HtmlOptions::default();
+            isotopo::html::write_analysis(&path, &report, second, &a.surface, &o)?;
+        }
         let mut text = Vec::new();
         done.write_json(&a, false, &mut text)?;
         String::from_utf8(text).map_err(|e| isotopo::Error::Internal(e.to_string()))
@@ -267,8 +297,15 @@ fn simplify(
         keep_handles: opt(opts, "keep_handles")?,
     };
     let target = ArrayView::of(out)?;
+    let html = html_target(volume, opts)?;
     run_job(py, volume, opts, progress, |source, p| {
         let mut done = isotopo::simplify(source, &s, p)?;
+        if let Some((path, _, title)) = html {
+            let mut report = isotopo::html::HtmlReport::simplified(&done, &s);
+            report.title = title;
+            let o = isotopo::html::HtmlOptions::default();
+            isotopo::html::write_simplified(&path, &report, &mut done, &s.surface, &o)?;
+        }
         done.edit_with(
             |z, slice| {
                 target.read(z, slice);

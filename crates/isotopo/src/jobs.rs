@@ -49,7 +49,7 @@ impl Source {
         }
     }
 
-    fn open(self) -> Result<Box<dyn SliceReader>> {
+    pub(crate) fn open(self) -> Result<Box<dyn SliceReader>> {
         match self {
             Source::File { path, read } => volume::open(&path, &read),
             Source::Memory(v) => Ok(Box::new(v)),

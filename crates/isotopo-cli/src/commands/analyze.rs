@@ -150,12 +150,12 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     let html = match &a.html {
         Some(p) => {
             let report = isotopo::html::HtmlReport::analysis(&analysis, &aopts, rows);
-            let mut reader = a.input.open()?;
+            let source = isotopo::Source::Reader(a.input.open()?);
             let opts = isotopo::html::HtmlOptions::default();
             Some(isotopo::html::write_analysis(
                 p,
                 &report,
-                reader.as_mut(),
+                source,
                 &aopts.surface,
                 &opts,
             )?)

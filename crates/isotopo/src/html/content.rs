@@ -159,6 +159,18 @@ fn volume_lines(
     ]
 }
 
+/// The rows of every handle of a streamed analysis, which is then rewound (for a caller that
+/// reads its handles only for the report; the command line takes them in its own pass).
+pub fn analysis_rows(a: &mut StreamedAnalysis) -> crate::error::Result<Vec<HtmlHandle>> {
+    a.rewind();
+    let mut rows = Vec::with_capacity(a.len());
+    while let Some(h) = a.next_handle()? {
+        rows.push(HtmlHandle::from_analysis_json(&h));
+    }
+    a.rewind();
+    Ok(rows)
+}
+
 impl HtmlReport {
     /// The report of an analysis whose handles (from [`HtmlHandle::from_analysis_json`]) are
     /// `handles`.

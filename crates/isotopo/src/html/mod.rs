@@ -29,10 +29,12 @@ mod bricks;
 mod content;
 mod scene;
 
+pub use content::analysis_rows;
+
 use crate::error::Result;
-use crate::jobs::Simplified;
+use crate::jobs::{Simplified, Source};
 use crate::topology::SurfaceOptions;
-use crate::volume::{AtomicOutput, Compression, Samples, SliceReader, VolumeInfo};
+use crate::volume::{AtomicOutput, Compression, Samples, VolumeInfo};
 use blob::Blob;
 use scene::{Coarse, Gather, MeshRef};
 use std::path::Path;
@@ -146,15 +148,16 @@ pub struct HtmlWritten {
     pub triangles: usize,
 }
 
-/// Writes the report of an analysis to `path` (atomically), reading the volume once more
-/// (`reader` from slice 0) for the meshes.
+/// Writes the report of an analysis to `path` (atomically), reading the volume (`source`, the
+/// one analysed) once more for the meshes.
 pub fn write_analysis(
     path: &Path,
     report: &HtmlReport,
-    reader: &mut dyn SliceReader,
+    source: Source,
     opts: &SurfaceOptions,
     html: &HtmlOptions,
 ) -> Result<HtmlWritten> {
+    let mut reader = source.open()?;
     reader.rewind()?;
     let info = reader.info().clone();
     let mut slice = Samples::new(info.dtype);
