@@ -208,8 +208,10 @@ fn write(
     feed(&mut |z, before, edited| gather.add_slice(z, before, edited))?;
     let mut blob = Blob::default();
     let mut triangles = 0;
-    let mut mesh = |values, dims, offset, blob: &mut Blob| -> Result<MeshRef> {
-        let m = scene::mesh_box(values, dims, offset, 1.0, opts, blob)?;
+    let mut mesh = |values: &[f32], c: &scene::Crop, blob: &mut Blob| -> Result<MeshRef> {
+        let offset = c.min.map(|v| v as f32);
+        let open = c.open_sides(info.dims);
+        let m = scene::mesh_box(values, c.dims, offset, 1.0, open, opts, blob)?;
         triangles += m.t[1];
         Ok(m)
     };
@@ -219,13 +221,12 @@ fn write(
         if blob.len() > html.max_mesh_bytes {
             break;
         }
-        let offset = c.min.map(|v| v as f32);
         // After the edits: only where a sample changed (null: the same as before).
-        let after = match c.after {
-            Some(a) if a != c.before => Some(mesh(a, c.dims, offset, &mut blob)?),
+        let after = match &c.after {
+            Some(a) if *a != c.before => Some(mesh(a, &c, &mut blob)?),
             _ => None,
         };
-        let before = mesh(c.before, c.dims, offset, &mut blob)?;
+        let before = mesh(&c.before, &c, &mut blob)?;
         meshed.push(serde_json::json!({ "before": before, "after": after }));
     }
     let overview = overview_meshes(&mut gather.coarse, after, opts, html, &mut blob)?;

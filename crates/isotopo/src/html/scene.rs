@@ -187,13 +187,25 @@ pub(crate) struct MeshRef {
     pub scale: f32,
 }
 
+/// Which sides of a box (low, high along x, y, z) lie inside the volume: there the mesh is cut
+/// open; at the volume's own sides the surface closes, as everywhere in isotopo.
+pub(crate) type OpenSides = [[bool; 2]; 3];
+
+impl Crop {
+    /// The sides of this box that lie inside a volume of `dims`.
+    pub fn open_sides(&self, dims: [usize; 3]) -> OpenSides {
+        [0, 1, 2].map(|a| [self.min[a] > 0, self.min[a] + self.dims[a] < dims[a]])
+    }
+}
+
 /// The isosurface of `values` (a box of `dims` samples whose first sample is at voxel
-/// `offset`, samples `step` voxels apart), cut open at the box's sides, into `blob`.
+/// `offset`, samples `step` voxels apart), cut open at its `open` sides, into `blob`.
 pub(crate) fn mesh_box(
-    values: Vec<f32>,
+    values: &[f32],
     dims: [usize; 3],
     offset: [f32; 3],
     step: f32,
+    open: OpenSides,
     opts: &SurfaceOptions,
     blob: &mut Blob,
 ) -> Result<MeshRef> {
@@ -206,9 +218,12 @@ pub(crate) fn mesh_box(
     info.path = "<report box>".into();
     let mut vol = InMemoryVolume::new(info, slices);
     let m = mesh::extract(&mut vol, opts, false, &NoProgress)?;
-    // Caps: triangles with a vertex beyond the box's outer samples.
+    // Caps: triangles with a vertex beyond the box's outer samples, on an open side.
     let limit = [nx, ny, nz].map(|d| d as f32 - 1.0);
-    let inside = |p: &[f32; 3]| (0..3).all(|a| p[a] >= 0.0 && p[a] <= limit[a]);
+    let inside = |p: &[f32; 3]| {
+        let beyond = |a: usize| (open[a][0] && p[a] < 0.0) || (open[a][1] && p[a] > limit[a]);
+        !(0..3).any(beyond)
+    };
     let mut keep = vec![u32::MAX; m.vertices.len()];
     let mut vertices = Vec::new();
     let mut triangles = Vec::new();
@@ -273,7 +288,16 @@ pub(crate) fn mesh_coarse(
     let f = coarse.factor as f32;
     // A block's average sits at its centre, (f - 1) / 2 voxels from its first sample.
     let offset = [(f - 1.0) / 2.0; 3];
-    mesh_box(coarse.values(which), coarse.dims, offset, f, opts, blob)
+    let closed = [[false; 2]; 3];
+    mesh_box(
+        &coarse.values(which),
+        coarse.dims,
+        offset,
+        f,
+        closed,
+        opts,
+        blob,
+    )
 }
 
 #[cfg(test)]
@@ -294,7 +318,8 @@ mod tests {
             .collect();
         let mut blob = Blob::default();
         let opts = SurfaceOptions::default();
-        let whole = mesh_box(all.clone(), dims, [0.0; 3], 1.0, &opts, &mut blob).unwrap();
+        let open = [[true; 2]; 3];
+        let whole = mesh_box(&all, dims, [0.0; 3], 1.0, open, &opts, &mut blob).unwrap();
         assert!(whole.t[1] > 100);
         let edges = |t: &[u32]| {
             let mut count = std::collections::HashMap::new();
@@ -310,7 +335,7 @@ mod tests {
         assert!(edges(&tris).values().all(|&n| n == 2), "whole ball closed");
         // The half z < 8: a bowl, open along its rim.
         let half: Vec<f32> = all[..16 * 16 * 8].to_vec();
-        let bowl = mesh_box(half, [16, 16, 8], [0.0; 3], 1.0, &opts, &mut blob).unwrap();
+        let bowl = mesh_box(&half, [16, 16, 8], [0.0; 3], 1.0, open, &opts, &mut blob).unwrap();
         let (codes, tris) = blob.mesh(bowl.v[0], bowl.v[1], bowl.t[0], bowl.t[1]);
         let e = edges(&tris);
         assert!(e.values().any(|&n| n == 1), "the bowl has a rim");
@@ -321,6 +346,12 @@ mod tests {
             .map(|c| bowl.origin[2] + bowl.scale * c[2] as f32)
             .fold(f32::MIN, f32::max);
         assert!(top <= 7.0 + 1e-3, "top {top}");
+        // At the volume's own side (closed), the cap stays: the half ball is closed.
+        let mut closed = open;
+        closed[2][1] = false;
+        let cup = mesh_box(&half, [16, 16, 8], [0.0; 3], 1.0, closed, &opts, &mut blob).unwrap();
+        let tris = blob.mesh(cup.v[0], cup.v[1], cup.t[0], cup.t[1]).1;
+        assert!(edges(&tris).values().all(|&n| n == 2), "closed half ball");
     }
 
     #[test]
