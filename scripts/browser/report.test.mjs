@@ -83,13 +83,17 @@ try {
     await page.screenshot({ path: screenshot });
     console.log(`  screenshot ${screenshot}`);
   }
-  const pixels = await page.evaluate(() => {
-    // The WebGL canvas (drawing buffer kept) read back through a 2D canvas.
-    const gl = document.getElementById('view-before');
+  // The view as the screen shows it: a screenshot of its canvas, its pixels counted (the
+  // PNG decoded by the page itself; nothing else needed).
+  const shot = await page.locator('#view-before').screenshot();
+  const pixels = await page.evaluate(async b64 => {
+    const img = new Image();
+    img.src = 'data:image/png;base64,' + b64;
+    await img.decode();
     const c = document.createElement('canvas');
-    c.width = gl.width; c.height = gl.height;
+    c.width = img.width; c.height = img.height;
     const ctx = c.getContext('2d');
-    ctx.drawImage(gl, 0, 0);
+    ctx.drawImage(img, 0, 0);
     const d = ctx.getImageData(0, 0, c.width, c.height).data;
     let surface = 0, blue = 0, red = 0;
     for (let i = 0; i < d.length; i += 4) {
@@ -99,7 +103,7 @@ try {
       if (r > 150 && g < 80 && b < 80) red++;
     }
     return { all: d.length / 4, surface, blue, red };
-  });
+  }, shot.toString('base64'));
   check(pixels.surface > pixels.all * 0.02,
     `the 3D view is not blank (${pixels.surface} of ${pixels.all} pixels drawn)`);
   check(pixels.blue + pixels.red > 20, `its loops are drawn (${pixels.blue} blue, ${pixels.red} red pixels)`);

@@ -225,7 +225,7 @@ function renderHistogram() {
     hover(r, label, hs);
     r.addEventListener('click', () => pick(hs, label));
   });
-  if (Number.isFinite(state.data.tau)) {
+  if (tauUsed()) {
     const t = x(Math.min(Math.max(state.data.tau - 0.5, x.lo), x.hi));
     el('path', { class: 'used-line', d: `M${t},${M.top}V${H - M.bottom}` }, svg);
   }
@@ -235,6 +235,9 @@ function renderHistogram() {
   el('text', { x: right ? t - 4 : t + 4, y: M.top + 12, fill: '#d22', 'text-anchor': right ? 'end' : 'start' }, svg)
     .textContent = `tau ${state.tau}`;
 }
+
+/// Whether the report is of a simplification with this tau (drawn dashed beside the slider's).
+const tauUsed = () => state.data.kind === 'simplify' && Number.isFinite(state.data.tau);
 
 /// The band of tau values that give the same result, shaded.
 function band(svg, x, span) {
@@ -263,7 +266,7 @@ function renderScatter() {
     const tx = x(Math.min(Math.max(t - 0.5, x.lo), x.hi)), ty = y(Math.min(Math.max(t - 0.5, y.lo), y.hi));
     el('path', { class: cls, d: `M${tx},${H - M.bottom}V${ty}H${M.left}` }, svg);
   };
-  if (Number.isFinite(state.data.tau)) lShape(state.data.tau, 'used-line');
+  if (tauUsed()) lShape(state.data.tau, 'used-line');
   lShape(state.tau, 'tau-line');
   for (const hs of points.values()) {
     const h = hs[0];
