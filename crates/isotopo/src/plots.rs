@@ -346,11 +346,12 @@ fn draw_scatter<DB: DrawingBackend>(
     if let Some(t) = tau.filter(|t| t.is_finite()) {
         chart
             .draw_series(LineSeries::new(
-                vec![(cut_at(t), 2.0), (cut_at(t), cut_at(t)), (2.0, cut_at(t))],
+                // A handle goes when either loop is below tau: left of or below the corner.
+                vec![(cut_at(t), max), (cut_at(t), cut_at(t)), (max, cut_at(t))],
                 RED.stroke_width(2),
             ))?
             .label(format!(
-                "tau = {t}: handles below or left of the line are removed"
+                "tau = {t}: handles left of or below the line are removed"
             ))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
     }

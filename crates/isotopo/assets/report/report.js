@@ -19,6 +19,18 @@ const state = {
 const PAGE = 100;
 const SLIDER = 1000;  // slider positions; tau 3 at 0, one more than the largest handle at the end
 
+/// The largest of `values` and `floor` (a loop: spreading 100,000 values into Math.max
+/// overflows the stack).
+function maxOf(values, floor) {
+  let m = floor;
+  for (const v of values) if (v > m) m = v;
+  return m;
+}
+
+/// Where simplifying with `tau` cuts an axis of integer sizes: between the sizes that go (below
+/// tau) and those that stay.
+const cutAt = tau => Math.ceil(tau) - 0.5;
+
 const tauAt = p => Math.round(3 * Math.pow(state.tauMax / 3, p / SLIDER));
 const sliderAt = tau => Math.round(SLIDER * Math.log(Math.max(tau, 3) / 3) / Math.log(state.tauMax / 3));
 
@@ -61,10 +73,11 @@ async function main() {
   const d = state.data;
   for (const h of d.handles) h.size = h.size ?? Infinity;
   const sizes = d.handles.map(h => h.size).filter(Number.isFinite);
-  const largest = Math.max(20, ...sizes);
-  // The slider is logarithmic: as fine at 3..20, where noise is, as at hundreds.
+  const largest = maxOf(sizes, 20);
+  // The slider is logarithmic: as fine at 3..20, where noise is, as at hundreds. Sizes are
+  // exact below the search limit (analyze --tau) or the tau used (simplify): it stops there.
   const slider = document.getElementById('tau');
-  state.tauMax = largest + 1;
+  state.tauMax = Number.isFinite(d.tau) ? Math.max(4, Math.ceil(d.tau)) : largest + 1;
   state.tau = Number.isFinite(d.tau) ? d.tau : Math.min(20, largest + 1);
   slider.min = '0';
   slider.max = String(SLIDER);
@@ -89,7 +102,14 @@ function renderHeader() {
   const what = d.kind === 'simplify' ? 'simplify report' : 'analysis';
   document.getElementById('subtitle').innerHTML =
     `${what}: <span id="handle-count">${n}</span> handle${n === 1 ? '' : 's'}` +
-    (d.kind === 'simplify' ? ` (removed and kept)` : '');
+    (d.kind === 'simplify' ? simplifyCounts(d) : '');
+}
+
+/// ": 685 removed by 669 walls, 21 kept" (a wall may close tiny handles beside its own).
+function simplifyCounts(d) {
+  const kept = d.handles.filter(h => h.status === 'kept').length;
+  const walls = d.handles.length - kept;
+  return `: ${d.handle_count - kept} removed by ${walls} wall${walls === 1 ? '' : 's'}, ${kept} kept`;
 }
 
 function renderSummary() {
@@ -133,7 +153,7 @@ function sameResult(tau) {
     if (h.size < tau) lo = Math.max(lo, h.size);
     else hi = Math.min(hi, h.size);
   }
-  return [lo, hi];
+  return [lo, Math.min(hi, state.tauMax)];
 }
 
 // --- plots (SVG) ----------------------------------------------------------------------------
@@ -202,13 +222,13 @@ function renderHistogram() {
   const box = document.getElementById('histogram');
   box.textContent = '';
   const handles = state.data.handles.filter(h => Number.isFinite(h.size));
-  const edges = binEdges(Math.max(10, ...handles.map(h => h.size)));
+  const edges = binEdges(maxOf(handles.map(h => h.size), 10));
   const bins = edges.slice(1).map(() => []);
   for (const h of handles) {
     const b = edges.findIndex((e, i) => i > 0 && h.size < e) - 1;
     if (b >= 0) bins[b].push(h);
   }
-  const top = Math.max(1, ...bins.map(b => b.length)) * 1.6;
+  const top = maxOf(bins.map(b => b.length), 1) * 1.6;
   const x = logScale(edges[0], edges[edges.length - 1], M.left, W - M.right);
   const y = logScale(0.7, top, H - M.bottom, M.top);
   const svg = el('svg', { viewBox: `0 0 ${W} ${H}`, role: 'img', 'aria-label': 'histogram of handle sizes' }, box);
@@ -218,7 +238,8 @@ function renderHistogram() {
     if (!hs.length) return;
     const x0 = x(edges[b]) + 1, x1 = x(edges[b + 1]) - 1;
     const r = el('rect', {
-      class: 'bar' + (edges[b + 1] <= state.tau + 0.5 ? ' goes' : ''),
+      // Goes when its largest size, edges[b + 1] - 0.5, is below tau.
+      class: 'bar' + (edges[b + 1] - 0.5 < state.tau ? ' goes' : ''),
       x: x0, width: Math.max(1, x1 - x0), y: y(hs.length), height: y(0.7) - y(hs.length),
     }, svg);
     const label = `size ${Math.ceil(edges[b])}${edges[b + 1] - edges[b] > 1 ? '–' + Math.floor(edges[b + 1]) : ''}`;
@@ -226,10 +247,10 @@ function renderHistogram() {
     r.addEventListener('click', () => pick(hs, label));
   });
   if (tauUsed()) {
-    const t = x(Math.min(Math.max(state.data.tau - 0.5, x.lo), x.hi));
+    const t = x(Math.min(Math.max(cutAt(state.data.tau), x.lo), x.hi));
     el('path', { class: 'used-line', d: `M${t},${M.top}V${H - M.bottom}` }, svg);
   }
-  const t = x(Math.min(Math.max(state.tau - 0.5, x.lo), x.hi));
+  const t = x(Math.min(Math.max(cutAt(state.tau), x.lo), x.hi));
   el('path', { class: 'tau-line', d: `M${t},${M.top}V${H - M.bottom}` }, svg);
   const right = t > W - M.right - 60;
   el('text', { x: right ? t - 4 : t + 4, y: M.top + 12, fill: '#d22', 'text-anchor': right ? 'end' : 'start' }, svg)
@@ -256,15 +277,16 @@ function renderScatter() {
     if (!points.has(key)) points.set(key, []);
     points.get(key).push(h);
   }
-  const max = Math.max(10, ...handles.map(h => Math.max(h.reeb, h.cross)));
+  const max = maxOf(handles.map(h => Math.max(h.reeb, h.cross)), 10);
   // Points at the smallest lengths sit inside the frame, not on the axes.
   const x = logScale(2.4, max * 1.3, M.left, W - M.right);
   const y = logScale(2.4, max * 1.3, H - M.bottom, M.top);
   const svg = el('svg', { viewBox: `0 0 ${W} ${H}`, role: 'img', 'aria-label': 'Reeb loop against cross loop' }, box);
   axes(svg, x, y, 'Reeb loop (voxel edges)', 'cross loop (voxel edges)');
   const lShape = (t, cls) => {
-    const tx = x(Math.min(Math.max(t - 0.5, x.lo), x.hi)), ty = y(Math.min(Math.max(t - 0.5, y.lo), y.hi));
-    el('path', { class: cls, d: `M${tx},${H - M.bottom}V${ty}H${M.left}` }, svg);
+    // A handle goes when either loop is below tau: left of or below the corner.
+    const tx = x(Math.min(Math.max(cutAt(t), x.lo), x.hi)), ty = y(Math.min(Math.max(cutAt(t), y.lo), y.hi));
+    el('path', { class: cls, d: `M${tx},${M.top}V${ty}H${W - M.right}` }, svg);
   };
   if (tauUsed()) lShape(state.data.tau, 'used-line');
   lShape(state.tau, 'tau-line');
@@ -488,6 +510,13 @@ function geometry(ref) {
   const d = new Index(state.bin, ref.t[0], ref.t[1] * 3);
   const index = new Index(d.length);
   for (let i = 0; i < d.length; i++) index[i] = (i ? index[i - 1] : 0) + d[i];
+  // What was decoded against the sums the report carries (html/scene.rs: encode).
+  let sumCodes = 0, sumIndices = 0;
+  for (const c of codes) sumCodes = (sumCodes + c) >>> 0;
+  for (const i of index) sumIndices = (sumIndices + i) >>> 0;
+  if (sumCodes !== ref.sum[0] || sumIndices !== ref.sum[1]) {
+    throw new Error('a mesh of the report does not decode to what was written: the file is damaged');
+  }
   const g = new T.BufferGeometry();
   g.setAttribute('position', new T.BufferAttribute(pos, 3));
   g.setIndex(new T.BufferAttribute(index, 1));
@@ -665,12 +694,14 @@ function showHandle(h) {
       v.root.add(surface(`overview ${k}`, d.overview[k], colour));
     }
     const loops = handleLoops(h);
-    const radius = Math.max(0.05, Math.max(...h.bbox.slice(3).map((v, a) => v - h.bbox[a])) / 60);
+    const radius = Math.max(0.05, maxOf(h.bbox.slice(3).map((v, a) => v - h.bbox[a]), 0) / 60);
     if (loops.length) v.root.add(loopTubes(loops.map(l => l[0]), loops.map(l => l[1]), radius));
     if (h.wall && h.wall.length) v.root.add(wallPoints(h.wall));
   });
-  // The box round the handle: 6 voxels beyond its loops (and wall), clipped to and framed.
-  const min = h.bbox.slice(0, 3).map(v => v - 6), max = h.bbox.slice(3).map(v => v + 6);
+  // The box round the handle: the report's margin beyond its loop (and wall), clipped to and
+  // framed (its bricks hold that much surface).
+  const m = state.data.margin;
+  const min = h.bbox.slice(0, 3).map(v => v - m), max = h.bbox.slice(3).map(v => v + m);
   clipTo(scene && document.getElementById('clip').checked ? min : null, max);
   frame(min, max, 2.2);
   const size = Number.isFinite(h.size) ? h.size : 'beyond the limit';

@@ -72,15 +72,18 @@ fn brick_dims(b: [usize; 3], dims: [usize; 3]) -> [usize; 3] {
     [0, 1, 2].map(|a| (BRICK + 1).min(dims[a] - b[a] * BRICK))
 }
 
-/// The bricks covering `bbox` (min x, y, z, max x, y, z) with 2 samples of margin, at most
+/// What a close-up shows beyond a handle's box (voxels): the page clips to the same margin.
+pub(crate) const MARGIN: i64 = 4;
+
+/// The bricks covering `bbox` (min x, y, z, max x, y, z) with [`MARGIN`] samples more, at most
 /// `side` samples across (its middle where it is larger).
 fn bricks_round(bbox: &[i64; 6], dims: [usize; 3], side: usize) -> Vec<[usize; 3]> {
     let mut range = [(0, 0); 3];
     for a in 0..3 {
         // The last brick holds cell dims - 2 (samples dims - 2 and dims - 1).
         let last = (dims[a] - 2) / BRICK;
-        let lo = (bbox[a] - 2).clamp(0, dims[a] as i64 - 1) as usize;
-        let hi = (bbox[a + 3] + 2).clamp(0, dims[a] as i64 - 1) as usize;
+        let lo = (bbox[a] - MARGIN).clamp(0, dims[a] as i64 - 1) as usize;
+        let hi = (bbox[a + 3] + MARGIN).clamp(0, dims[a] as i64 - 1) as usize;
         let (mut lo, mut hi) = (lo.min(hi), lo.max(hi));
         if hi - lo + 1 > side.max(2) {
             let mid = (lo + hi) / 2;
@@ -109,8 +112,8 @@ mod tests {
 
     #[test]
     fn bricks_cover_the_box_inside_the_volume() {
-        // Samples 13..=21 along x (box 15..19 with the margin): cells 13..21, bricks 0 and 1.
-        let b = bricks_round(&[15, 0, 90, 19, 0, 99], [100, 40, 100], 48);
+        // Samples 13..=21 along x (box 17..17 with the margin): cells 13..21, bricks 0 and 1.
+        let b = bricks_round(&[17, 0, 92, 17, 0, 99], [100, 40, 100], 48);
         let xs: Vec<usize> = b.iter().map(|b| b[0]).collect();
         assert!(xs.contains(&0) && xs.contains(&1) && !xs.contains(&2));
         // Along z, samples 88..=99: the last brick is 6 (cells 96..98).

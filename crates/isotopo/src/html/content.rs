@@ -22,11 +22,23 @@ impl HtmlHandle {
         };
         let b = &h["bbox"];
         let at = |k: &str, a: usize| b[k][a].as_i64().unwrap_or(0);
+        let whole = [
+            at("min", 0),
+            at("min", 1),
+            at("min", 2),
+            at("max", 0),
+            at("max", 1),
+            at("max", 2),
+        ];
         HtmlHandle {
             id: h["id"].as_u64().unwrap_or(0) as usize,
             surface: h["surface"].as_u64().map(|s| s as usize),
             kind: h["kind"].as_str().unwrap_or("").to_string(),
-            size: h["size"].as_u64().map(|s| s as usize),
+            // With a search limit, a handle missing a loop has some size at or above it: unknown.
+            size: h["size"]
+                .as_u64()
+                .map(|s| s as usize)
+                .filter(|_| reeb.is_some() && cross.is_some()),
             reeb,
             reeb_mm: mm("reeb_loop"),
             cross,
@@ -34,14 +46,8 @@ impl HtmlHandle {
             encloses: h[smaller]["encloses"].as_str().map(String::from),
             status: None,
             detail: None,
-            bbox: [
-                at("min", 0),
-                at("min", 1),
-                at("min", 2),
-                at("max", 0),
-                at("max", 1),
-                at("max", 2),
-            ],
+            // Where the handle is: its shorter loop (the other may run far along the surface).
+            bbox: points(smaller).map_or(whole, |p| points_box(&p)),
             loops: ["reeb_loop", "cross_loop"]
                 .into_iter()
                 .filter_map(points)
@@ -52,7 +58,7 @@ impl HtmlHandle {
 
     /// A handle `simplify` removed: the loop it closed, and its wall.
     pub fn from_removed(id: usize, r: &Removed) -> HtmlHandle {
-        let closed_is_reeb = Some(r.length) == r.reeb && r.reeb <= r.cross;
+        let closed_is_reeb = r.closed == crate::simplify::LoopKind::Reeb;
         HtmlHandle {
             id,
             surface: None,
@@ -70,7 +76,15 @@ impl HtmlHandle {
                 .to_string(),
             ),
             status: Some(name(&r.operation)),
-            detail: Some(format!("{} ({} samples)", r.wall, r.samples_changed)),
+            detail: Some(match r.handles {
+                1 => format!("{} ({} samples)", r.wall, r.samples_changed),
+                n => format!(
+                    "{} ({} samples; closed {} tiny handles beside too)",
+                    r.wall,
+                    r.samples_changed,
+                    n - 1
+                ),
+            }),
             bbox: loop_and_wall_box(r),
             loops: vec![r.points.clone()],
             wall: r.samples.clone(),
@@ -100,6 +114,21 @@ fn name(v: &impl serde::Serialize) -> String {
         Ok(Value::String(s)) => s,
         _ => String::new(),
     }
+}
+
+/// The box of voxels round loop points (on half-integers).
+fn points_box(points: &[[f64; 3]]) -> [i64; 6] {
+    let mut b = [i64::MAX, i64::MAX, i64::MAX, i64::MIN, i64::MIN, i64::MIN];
+    for p in points {
+        for a in 0..3 {
+            b[a] = b[a].min(p[a].floor() as i64);
+            b[a + 3] = b[a + 3].max(p[a].ceil() as i64);
+        }
+    }
+    if b[0] > b[3] {
+        return [0; 6];
+    }
+    b
 }
 
 /// The box of a removal's closed loop and wall: what its close-up shows (the box of both loops,
@@ -228,19 +257,15 @@ impl HtmlReport {
             crate::loops::Metric::Edges => "voxel edges",
         };
         summary.push(("tau".into(), format!("{} {unit}", opts.tau)));
-        let by = |op: &str| {
-            o.removed
-                .iter()
-                .filter(|r| name(&r.operation) == op)
-                .count()
-        };
+        use crate::simplify::Operation;
+        let removed_handles: usize = o.removed.iter().map(|r| r.handles).sum();
         summary.push((
             "handles removed".into(),
             format!(
-                "{} ({} by collapse: a wall filling a loop round void; {} by pinch: a cut across material)",
+                "{removed_handles} by {} walls ({} by collapse: a wall filling a loop round void; {} by pinch: a cut across material)",
                 o.removed.len(),
-                by("collapse"),
-                by("pinch")
+                o.handles_removed_by(Operation::Collapse),
+                o.handles_removed_by(Operation::Pinch)
             ),
         ));
         summary.push(("handles kept".into(), o.kept.len().to_string()));
@@ -279,7 +304,8 @@ impl HtmlReport {
             title: file_name(&s.info),
             summary,
             tau: (unit == "voxel edges").then_some(opts.tau),
-            handle_count: handles.len(),
+            // Handles, not rows: a wall may close tiny handles beside its own.
+            handle_count: removed_handles + o.kept.len(),
             handles,
         }
     }

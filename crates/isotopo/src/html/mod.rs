@@ -223,11 +223,17 @@ fn write(
         }
         // After the edits: only where a sample changed (null: the same as before).
         let after = match &c.after {
-            Some(a) if *a != c.before => Some(mesh(a, &c, &mut blob)?),
+            // Bitwise: NaN samples are the same sample.
+            Some(a) if !same_bits(a, &c.before) => Some(mesh(a, &c, &mut blob)?),
             _ => None,
         };
         let before = mesh(&c.before, &c, &mut blob)?;
-        meshed.push(serde_json::json!({ "before": before, "after": after }));
+        meshed.push(serde_json::json!({
+            "min": c.min,
+            "dims": c.dims,
+            "before": before,
+            "after": after,
+        }));
     }
     let overview = overview_meshes(&mut gather.coarse, after, opts, html, &mut blob)?;
     triangles += overview.iter().map(|m| m.t[1]).sum::<usize>();
@@ -265,6 +271,7 @@ fn write(
         overview: &overview.meshes,
         overview_factor: overview.factor,
         version: env!("CARGO_PKG_VERSION"),
+        margin: bricks::MARGIN,
     };
     let mut out = AtomicOutput::create(path, Compression::None)?;
     write_page(&mut out, report, &data, &blob)?;
@@ -297,6 +304,10 @@ fn overview_meshes(
     (0..if after { 2 } else { 1 })
         .map(|w| scene::mesh_coarse(coarse, w, opts, blob))
         .collect()
+}
+
+fn same_bits(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 /// Handle indices, smallest first (no loop within the limit: last), then by id.
@@ -333,6 +344,8 @@ struct Data<'a> {
     overview: &'a [MeshRef],
     overview_factor: usize,
     version: &'static str,
+    /// Voxels of surface a close-up shows beyond a handle's box (the page clips there).
+    margin: i64,
 }
 
 /// A handle's row: its fields, its bricks, and its loops and wall (doubled voxel coordinates,

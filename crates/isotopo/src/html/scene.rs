@@ -185,6 +185,9 @@ pub(crate) struct MeshRef {
     pub w: usize,
     pub origin: [f32; 3],
     pub scale: f32,
+    /// Sums (wrapping, u32) of the vertex codes and of the indices: the page checks what it
+    /// decodes against them and says so if the report is damaged.
+    pub sum: [u32; 2],
 }
 
 /// Which sides of a box (low, high along x, y, z) lie inside the volume: there the mesh is cut
@@ -268,6 +271,8 @@ fn encode(
         .collect();
     let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
     let (v, t, w) = blob.push_mesh(&codes, &flat);
+    let sum_codes = codes.iter().fold(0u32, |s, &c| s.wrapping_add(c as u32));
+    let sum_indices = flat.iter().fold(0u32, |s, &i| s.wrapping_add(i));
     let lo = if vertices.is_empty() { [0.0; 3] } else { lo };
     MeshRef {
         v: [v, vertices.len()],
@@ -275,6 +280,7 @@ fn encode(
         w,
         origin: [0, 1, 2].map(|a| offset[a] + lo[a] * step),
         scale: step / q,
+        sum: [sum_codes, sum_indices],
     }
 }
 
