@@ -21,7 +21,7 @@
 //! decides about; for `simplify`, a second mesh only for the bricks the edits changed), and a
 //! coarse whole surface ([`HtmlOptions::overview_side`]); vertices quantized to 16 bits and
 //! delta-coded; everything gzip-compressed. On the MNI sample (706 handles, all in 3D) a report
-//! is 4.4 MB. three.js (MIT, pinned in `assets/viewer/package.json`, bundled by
+//! is 4.2 MB. three.js (MIT, pinned in `assets/viewer/package.json`, bundled by
 //! `assets/viewer/build.sh`) is embedded compressed too (about 140 KB).
 
 mod blob;
