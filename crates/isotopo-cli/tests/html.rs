@@ -112,6 +112,16 @@ fn the_html_reports_hold_every_handle_and_sound_meshes() {
         "three.js embedded"
     );
     assert_eq!(data["kind"], "analyze");
+    let solid = data["summary"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l[0] == "solid")
+        .expect("the solid's Betti numbers in the summary");
+    assert_eq!(
+        solid[1],
+        "b0 2 components, b1 2 handles (total genus), b2 0 cavities"
+    );
     assert_eq!(data["handle_count"], handles);
     let rows = data["handles"].as_array().unwrap();
     assert_eq!(rows.len(), handles);

@@ -235,12 +235,18 @@ fn analyze(
     };
     // The HTML report reads the volume once more, through a second view of the array.
     let html = html_target(volume, opts)?;
+    let third = match html {
+        Some(_) => Some(source(volume, opts)?),
+        None => None,
+    };
     run_job(py, volume, opts, progress, |source, p| {
         // Streamed: the report's text is all that is held, not the handles it comes from.
         let mut done = isotopo::analyze_streamed(source, &a, p)?;
-        if let Some((path, second, title)) = html {
+        if let (Some((path, second, title)), Some(third)) = (html, third) {
             let rows = isotopo::html::analysis_rows(&mut done)?;
-            let mut report = isotopo::html::HtmlReport::analysis(&done, &a, rows);
+            let topology = isotopo::genus(third, &a.surface, p)?;
+            let mut report =
+                isotopo::html::HtmlReport::analysis(&done, &a, rows).with_topology(&topology);
             report.title = title;
             let o = isotopo::html::HtmlOptions::default();
             isotopo::html::write_analysis(&path, &report, second, &a.surface, &o)?;

@@ -149,7 +149,14 @@ pub(crate) fn run(a: AnalyzeArgs) -> Result<()> {
     }
     let html = match &a.html {
         Some(p) => {
-            let report = isotopo::html::HtmlReport::analysis(&analysis, &aopts, rows);
+            // b0, b1, b2 for the summary: a genus pass, a fraction of the analysis's time.
+            let topology = isotopo::genus(
+                isotopo::Source::Reader(a.input.open()?),
+                &aopts.surface,
+                &isotopo::progress::NoProgress,
+            )?;
+            let report = isotopo::html::HtmlReport::analysis(&analysis, &aopts, rows)
+                .with_topology(&topology);
             let source = isotopo::Source::Reader(a.input.open()?);
             let opts = isotopo::html::HtmlOptions::default();
             Some(isotopo::html::write_analysis(

@@ -243,6 +243,42 @@ impl HtmlReport {
         }
     }
 
+    /// Adds the solid's topology from a genus pass (b0, b1, b2, and where other meshers see
+    /// another one) after the isosurface's line.
+    pub fn with_topology(mut self, t: &crate::jobs::Topology) -> HtmlReport {
+        let s = &t.solid;
+        let m = &t.meshers;
+        let lines = [
+            (
+                "solid".to_string(),
+                format!(
+                    "b0 {} components, b1 {} handles (total genus), b2 {} cavities",
+                    s.b0, s.b1, s.b2
+                ),
+            ),
+            (
+                "other meshers".to_string(),
+                format!(
+                    "{} critical faces and {} critical cubes, {} samples at the isovalue (where meshers may see another topology); connectivity {}: b0 {}, b1 {}, b2 {}",
+                    m.critical.faces,
+                    m.critical.cubes,
+                    m.samples_at_iso,
+                    m.other_connectivity,
+                    m.b0,
+                    m.b1,
+                    m.b2
+                ),
+            ),
+        ];
+        let at = self
+            .summary
+            .iter()
+            .position(|(label, _)| label == "isosurface")
+            .map_or(self.summary.len(), |i| i + 1);
+        self.summary.splice(at..at, lines);
+        self
+    }
+
     /// The report of a simplification: its handles removed, then kept.
     pub fn simplified(s: &Simplified, opts: &SimplifyOptions) -> HtmlReport {
         let o = &s.outcome;
