@@ -24,6 +24,7 @@ pub(crate) mod mini;
 mod reeb;
 
 pub(crate) use reeb::ReebGraph;
+use reeb::RollbackUnionFind;
 pub use reeb::{Node, NodeKind};
 
 use crate::error::{Error, Result};
@@ -125,9 +126,9 @@ struct SweepLevel {
     unresolved: Vec<Unresolved>,
     graph: ReebGraph,
     /// (ribbon node, 4 × its share of its surface's Euler characteristic)
-    ribbon_chi4: Vec<(u32, i64)>,
-    /// (ribbon node, lowest cube in original coordinates and corner): numbers surfaces.
-    ribbon_key: Vec<(u32, [i64; 4])>,
+    ribbon_chi4: Vec<(u32, i32)>,
+    /// (ribbon node, lowest cube in original coordinates (z, y, x) and corner): numbers surfaces.
+    ribbon_key: Vec<(u32, [i32; 4])>,
     probe_node: Option<u32>,
 }
 
@@ -182,10 +183,55 @@ fn contour_vertex(
     vertex_of([cube.i as i64 - 1, cube.j as i64 - 1, s.z as i64], e)
 }
 
+/// Where a node of the sweep's Reeb graph lies, in 24 bytes (a noisy volume has hundreds of
+/// thousands of nodes; coordinates fit in 32 bits, [`Sweeper::step`] refuses longer axes): a
+/// ribbon's cube box in original coordinates, or a contour's first vertex and its length.
+#[derive(Clone, Copy, Debug, Default)]
+struct NodePlace {
+    a: [i32; 3],
+    b: [i32; 3],
+}
+
+impl NodePlace {
+    fn ribbon(b: BBox) -> NodePlace {
+        NodePlace {
+            a: b.min.map(|x| x as i32),
+            b: b.max.map(|x| x as i32),
+        }
+    }
+
+    fn contour(v: Vertex, length: u32) -> NodePlace {
+        NodePlace {
+            a: v.p.map(|x| x as i32),
+            b: [v.axis as i32, length as i32, 0],
+        }
+    }
+
+    fn ribbon_box(self) -> BBox {
+        BBox {
+            min: self.a.map(i64::from),
+            max: self.b.map(i64::from),
+        }
+    }
+
+    /// A contour's vertex and length.
+    fn contour_at(self) -> (Vertex, u32) {
+        let v = Vertex {
+            p: self.a.map(i64::from),
+            axis: self.b[0] as u8,
+        };
+        (v, self.b[1] as u32)
+    }
+}
+
+/// Longest axis a sweep takes: coordinates with the padding, and node places, fit in an i32.
+const MAX_AXIS: usize = (i32::MAX - 4) as usize;
+
 /// The sweep's state at the start of one slice, to step back to.
 #[derive(Clone, Copy, Debug)]
 struct Checkpoint {
-    nodes: usize,
+    /// The Reeb graph's nodes and edges.
+    graph: (usize, usize),
     uf: (usize, usize),
     handles: usize,
     unresolved: usize,
@@ -212,13 +258,12 @@ pub struct Sweeper {
     prev_contours: contours::PlaneContours,
     prev_contour_node: Vec<u32>,
     /// Per node: the cube box of a ribbon, or a vertex and the length of a contour.
-    ribbon_boxes: Vec<BBox>,
-    contour_at: Vec<(Vertex, u32)>,
+    places: Vec<NodePlace>,
     /// Handles found so far, with the slice where each was found.
     handles: Vec<(i64, LocatedHandle)>,
     unresolved: Vec<Unresolved>,
-    ribbon_chi4: Vec<(u32, i64)>,
-    ribbon_key: Vec<(u32, [i64; 4])>,
+    ribbon_chi4: Vec<(u32, i32)>,
+    ribbon_key: Vec<(u32, [i32; 4])>,
     probe_node: Option<u32>,
     /// Checkpoint at the start of slice s, at index s + 1.
     checkpoints: Vec<Checkpoint>,
@@ -252,8 +297,7 @@ impl Sweeper {
             graph: ReebGraph::default(),
             prev_contours: contours::PlaneContours::default(),
             prev_contour_node: Vec::new(),
-            ribbon_boxes: Vec::new(),
-            contour_at: Vec::new(),
+            places: Vec::new(),
             handles: Vec::new(),
             unresolved: Vec::new(),
             ribbon_chi4: Vec::new(),
@@ -292,8 +336,7 @@ impl Sweeper {
     fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
         let id = self.graph.add_node(kind, level, local);
         self.is_cut.push(false);
-        self.ribbon_boxes.push(BBox::EMPTY);
-        self.contour_at.push((Vertex { p: [0; 3], axis: 0 }, 0));
+        self.places.push(NodePlace::default());
         id
     }
 
@@ -306,6 +349,12 @@ impl Sweeper {
     ///   plane s     ── bottom contours (from the step below) ──
     /// ```
     pub fn step(&mut self, vol: &MaskVolume) -> Result<usize> {
+        if vol.dims.iter().any(|&d| d > MAX_AXIS) {
+            return Err(Error::usage(format!(
+                "an axis of {:?} samples is longer than the sweep takes ({MAX_AXIS})",
+                vol.dims
+            )));
+        }
         let s = self.next;
         let found_before = self.handles.len();
         self.push_checkpoint(s);
@@ -330,7 +379,7 @@ impl Sweeper {
     fn push_checkpoint(&mut self, s: i64) {
         self.checkpoints.truncate((s + 1) as usize);
         self.checkpoints.push(Checkpoint {
-            nodes: self.graph.nodes.len(),
+            graph: self.graph.size(),
             uf: self.graph.uf.checkpoint(),
             handles: self.handles.len(),
             unresolved: self.unresolved.len(),
@@ -347,13 +396,14 @@ impl Sweeper {
             .map(|r| {
                 let id = self.add_node(NodeKind::Ribbon, s as i32, r as u32);
                 let rb = &cur.ribbons[r];
-                self.ribbon_boxes[id as usize] = cube_box(&vol.frame, rb.min, rb.max, s);
-                self.ribbon_chi4.push((id, rb.surface_chi4 as i64));
+                self.places[id as usize] =
+                    NodePlace::ribbon(cube_box(&vol.frame, rb.min, rb.max, s));
+                self.ribbon_chi4.push((id, rb.surface_chi4));
                 id
             })
             .collect();
         let table = cases(self.conn);
-        let mut keys = vec![[i64::MAX; 4]; cur.ribbons.len()];
+        let mut keys = vec![[i32::MAX; 4]; cur.ribbons.len()];
         let least_corner = self
             .least_corner
             .get_or_insert_with(|| Box::new(least_original_corners(&vol.frame)));
@@ -365,7 +415,7 @@ impl Sweeper {
             for k in 0..case.n_pieces as usize {
                 let r = cur.piece_ribbon[cube.first_piece as usize + k] as usize;
                 let corner = least_corner[case.pieces[k].corners as usize];
-                keys[r] = keys[r].min([o[2], o[1], o[0], corner as i64]);
+                keys[r] = keys[r].min([o[2] as i32, o[1] as i32, o[0] as i32, corner as i32]);
             }
         }
         for (r, k) in keys.into_iter().enumerate() {
@@ -455,11 +505,12 @@ impl Sweeper {
         let mut bbox = BBox::EMPTY;
         let mut shortest: Option<(Vertex, u32, i32, u32)> = None;
         for &n in &path {
-            let node = self.graph.nodes[n as usize];
+            let node = self.graph.node(n);
+            let place = self.places[n as usize];
             match node.kind {
-                NodeKind::Ribbon => bbox.union(&self.ribbon_boxes[n as usize]),
+                NodeKind::Ribbon => bbox.union(&place.ribbon_box()),
                 NodeKind::Contour => {
-                    let (v, len) = self.contour_at[n as usize];
+                    let (v, len) = place.contour_at();
                     if shortest.is_none_or(|x| len < x.1) {
                         shortest = Some((v, len, node.level, n));
                     }
@@ -471,10 +522,10 @@ impl Sweeper {
         self.is_cut[cut_node as usize] = true;
         let cut = walk_contour(surface, v, level as i64)
             .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
-        let cycle = path.iter().map(|&n| self.graph.nodes[n as usize]).collect();
+        let cycle = path.iter().map(|&n| self.graph.node(n)).collect();
         let contour_starts = path
             .iter()
-            .map(|&n| self.contour_at[n as usize].0)
+            .map(|&n| self.places[n as usize].contour_at().0)
             .collect();
         let cut_at = path.iter().position(|&n| n == cut_node).unwrap_or(0);
         Ok(LocatedHandle {
@@ -503,7 +554,7 @@ impl Sweeper {
     ) -> (contours::PlaneContours, Vec<u32>, Vec<u32>) {
         let table = cases(self.conn);
         let top = contours::label(cur, 5, table, &mut self.uf);
-        let base = self.graph.nodes.len() as u32;
+        let base = self.graph.size().0 as u32;
         self.checkpoints
             .last_mut()
             .expect("pushed by step")
@@ -526,7 +577,7 @@ impl Sweeper {
                 // The segment's first end lies in plane s + 1 (face 5 of the cube).
                 let mut v = contour_vertex(cur, &cur.top, k, slot, 5, table);
                 v.p[2] = s + 1;
-                self.contour_at[node as usize] = (v, top.length[c as usize]);
+                self.places[node as usize] = NodePlace::contour(v, top.length[c as usize]);
                 top_count[r] += 1;
             }
         }
@@ -589,18 +640,17 @@ impl Sweeper {
         let keep_from = if s0 >= 0 {
             self.checkpoints[s0 as usize].contour_base as usize
         } else {
-            cp.nodes
+            cp.graph.0
         };
         for (_, h) in &self.handles[cp.handles..] {
             if let Some(n) = h.cut_node.filter(|&n| (n as usize) < self.is_cut.len()) {
                 self.is_cut[n as usize] = false;
             }
         }
-        self.is_cut.truncate(cp.nodes);
-        self.graph.truncate_from(cp.nodes, keep_from);
+        self.is_cut.truncate(cp.graph.0);
+        self.graph.truncate(cp.graph);
         self.graph.uf.rollback(cp.uf);
-        self.ribbon_boxes.truncate(cp.nodes);
-        self.contour_at.truncate(cp.nodes);
+        self.places.truncate(cp.graph.0);
         self.handles.truncate(cp.handles);
         self.unresolved.truncate(cp.unresolved);
         self.ribbon_chi4.truncate(cp.ribbons);
@@ -701,7 +751,8 @@ pub fn find_handles_each(
 /// The closed surfaces of a sweep, numbered as the genus pass numbers them, and which one each
 /// node of its Reeb graph lies on.
 pub struct SurfaceNumbers {
-    graph: ReebGraph,
+    /// The Reeb graph's components (its nodes and edges are let go).
+    uf: RollbackUnionFind,
     id_of: std::collections::HashMap<u32, usize>,
     /// Every closed surface, by id (their `handles` counts are left to the caller).
     pub surfaces: Vec<SweepSurface>,
@@ -713,12 +764,12 @@ impl SurfaceNumbers {
     fn of(level: SweepLevel) -> SurfaceNumbers {
         let uf = &level.graph.uf;
         // Surfaces: components holding ribbons, numbered by their lowest cube.
-        let mut key_of_root: std::collections::HashMap<u32, [i64; 4]> = Default::default();
+        let mut key_of_root: std::collections::HashMap<u32, [i32; 4]> = Default::default();
         for &(n, k) in &level.ribbon_key {
-            let e = key_of_root.entry(uf.find(n)).or_insert([i64::MAX; 4]);
+            let e = key_of_root.entry(uf.find(n)).or_insert([i32::MAX; 4]);
             *e = (*e).min(k);
         }
-        let mut roots: Vec<(u32, [i64; 4])> = key_of_root.into_iter().collect();
+        let mut roots: Vec<(u32, [i32; 4])> = key_of_root.into_iter().collect();
         roots.sort_by_key(|&(_, k)| k);
         let id_of: std::collections::HashMap<u32, usize> = roots
             .iter()
@@ -727,7 +778,7 @@ impl SurfaceNumbers {
             .collect();
         let mut chi4 = vec![0i64; roots.len()];
         for &(n, c) in &level.ribbon_chi4 {
-            chi4[id_of[&uf.find(n)]] += c;
+            chi4[id_of[&uf.find(n)]] += i64::from(c);
         }
         let surfaces: Vec<SweepSurface> = chi4
             .iter()
@@ -740,7 +791,7 @@ impl SurfaceNumbers {
             .collect();
         let genus = surfaces.iter().map(|s| s.genus).sum();
         SurfaceNumbers {
-            graph: level.graph,
+            uf: level.graph.uf,
             id_of,
             surfaces,
             genus,
@@ -749,12 +800,12 @@ impl SurfaceNumbers {
 
     /// The surface a handle lies on.
     pub fn surface_of(&self, h: &LocatedHandle) -> usize {
-        self.id_of[&self.graph.uf.find(h.top_node)]
+        self.id_of[&self.uf.find(h.top_node)]
     }
 
     /// The order handles are numbered in: by surface, then lowest position (z, y, x).
     pub fn order_key(&self, key: NumberKey) -> (usize, [i64; 3]) {
-        let surface = self.id_of[&self.graph.uf.find(key.top_node)];
+        let surface = self.id_of[&self.uf.find(key.top_node)];
         (surface, key.at.map(i64::from))
     }
 }
@@ -1002,13 +1053,13 @@ pub fn find_handles(
     let mut level = sweep_level(vol, conn, 0, None, progress)?;
     let located = std::mem::take(&mut level.handles);
     let SurfaceNumbers {
-        graph,
+        uf,
         id_of,
         mut surfaces,
         genus,
     } = SurfaceNumbers::of(level);
     let numbers = SurfaceNumbers {
-        graph,
+        uf,
         id_of,
         surfaces: Vec::new(),
         genus,

@@ -86,35 +86,108 @@ impl RollbackUnionFind {
     }
 }
 
+/// A node in 8 bytes: its level, and its index with the kind in the top bit.
+#[derive(Clone, Copy, Debug)]
+struct PackedNode {
+    level: i32,
+    local_and_kind: u32,
+}
+
+const RIBBON_BIT: u32 = 1 << 31;
+
+impl PackedNode {
+    fn unpack(self) -> Node {
+        let kind = if self.local_and_kind & RIBBON_BIT != 0 {
+            NodeKind::Ribbon
+        } else {
+            NodeKind::Contour
+        };
+        Node {
+            kind,
+            level: self.level,
+            local: self.local_and_kind & !RIBBON_BIT,
+        }
+    }
+}
+
+/// No half-edge: the end of a node's list.
+const NONE: u32 = u32::MAX;
+
 /// Contour and ribbon nodes and the edges between them.
+///
+/// A noisy volume has a node for every few hundred voxels, all kept until the sweep ends (a new
+/// cycle may run down to the first plane), so a node costs about 60 bytes here: packed nodes,
+/// and edges as lists of half-edges in one array rather than a vector per node.
+///
+/// ```text
+///   edge k joins a and b:  half[2k] = (b, next of a),  half[2k+1] = (a, next of b)
+///   first[a] -> newest half-edge of a -> ... -> NONE
+/// ```
+/// Edges are only ever removed newest first (rewinding), which restores every `first` exactly.
 #[derive(Clone, Debug, Default)]
 pub struct ReebGraph {
-    pub(crate) nodes: Vec<Node>,
-    pub adj: Vec<Vec<u32>>,
+    nodes: Vec<PackedNode>,
+    first: Vec<u32>,
+    /// (the other end, the next half-edge of the same node)
+    half: Vec<(u32, u32)>,
     pub uf: RollbackUnionFind,
-    /// Breadth-first search scratch: visit stamp and predecessor per node.
+    /// Breadth-first search scratch: visit stamp and predecessor per node, a node's neighbours.
     stamp: Vec<u32>,
     pred: Vec<u32>,
     generation: u32,
+    around: Vec<u32>,
 }
 
 impl ReebGraph {
     pub(crate) fn add_node(&mut self, kind: NodeKind, level: i32, local: u32) -> u32 {
         let id = self.nodes.len() as u32;
-        self.nodes.push(Node { kind, level, local });
-        self.adj.push(Vec::new());
+        let bit = if kind == NodeKind::Ribbon {
+            RIBBON_BIT
+        } else {
+            0
+        };
+        self.nodes.push(PackedNode {
+            level,
+            local_and_kind: (local & !RIBBON_BIT) | bit,
+        });
+        self.first.push(NONE);
         self.uf.push();
         id
     }
 
     pub(crate) fn add_edge(&mut self, a: u32, b: u32) {
-        self.adj[a as usize].push(b);
-        self.adj[b as usize].push(a);
+        let k = self.half.len() as u32;
+        self.half.push((b, self.first[a as usize]));
+        self.half.push((a, self.first[b as usize]));
+        self.first[a as usize] = k;
+        self.first[b as usize] = k + 1;
         self.uf.union(a, b);
+    }
+
+    /// Node `n`.
+    pub(crate) fn node(&self, n: u32) -> Node {
+        self.nodes[n as usize].unpack()
+    }
+
+    /// How many nodes, and how many edges (what [`ReebGraph::truncate`] goes back to).
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.nodes.len(), self.half.len() / 2)
     }
 
     pub fn connected(&self, a: u32, b: u32) -> bool {
         self.uf.find(a) == self.uf.find(b)
+    }
+
+    /// The neighbours of `x` into `out`, oldest edge first.
+    fn neighbours(&self, x: u32, out: &mut Vec<u32>) {
+        out.clear();
+        let mut e = self.first[x as usize];
+        while e != NONE {
+            let (y, next) = self.half[e as usize];
+            out.push(y);
+            e = next;
+        }
+        out.reverse();
     }
 
     /// Shortest path from `from` to `to` (breadth-first, both included) through nodes that are
@@ -135,19 +208,15 @@ impl ReebGraph {
         self.stamp[from as usize] = g;
         self.pred[from as usize] = u32::MAX;
         queue.push_back(from);
+        let mut around = std::mem::take(&mut self.around);
+        let mut found = false;
         while let Some(x) = queue.pop_front() {
             if x == to {
-                let mut path = vec![to];
-                let mut y = to;
-                while self.pred[y as usize] != u32::MAX {
-                    y = self.pred[y as usize];
-                    path.push(y);
-                }
-                path.reverse();
-                return Some(path);
+                found = true;
+                break;
             }
-            for k in 0..self.adj[x as usize].len() {
-                let y = self.adj[x as usize][k];
+            self.neighbours(x, &mut around);
+            for &y in &around {
                 if self.stamp[y as usize] != g && !blocked.get(y as usize).copied().unwrap_or(false)
                 {
                     self.stamp[y as usize] = g;
@@ -156,17 +225,31 @@ impl ReebGraph {
                 }
             }
         }
-        None
+        self.around = around;
+        if !found {
+            return None;
+        }
+        let mut path = vec![to];
+        let mut y = to;
+        while self.pred[y as usize] != u32::MAX {
+            y = self.pred[y as usize];
+            path.push(y);
+        }
+        path.reverse();
+        Some(path)
     }
 
-    /// Removes the nodes from `first` on and their edges, when only nodes from `scan_from` on
-    /// can have edges to them.
-    pub fn truncate_from(&mut self, first: usize, scan_from: usize) {
-        self.nodes.truncate(first);
-        self.adj.truncate(first);
-        for a in &mut self.adj[scan_from.min(first)..] {
-            a.retain(|&b| (b as usize) < first);
+    /// Goes back to `size` (from [`ReebGraph::size`]): removes the newer edges, newest first,
+    /// then the newer nodes (no older edge reaches them).
+    pub fn truncate(&mut self, size: (usize, usize)) {
+        while self.half.len() > 2 * size.1 {
+            let (a, next_b) = self.half.pop().expect("a pair");
+            let (b, next_a) = self.half.pop().expect("a pair");
+            self.first[a as usize] = next_a;
+            self.first[b as usize] = next_b;
         }
+        self.nodes.truncate(size.0);
+        self.first.truncate(size.0);
     }
 }
 
@@ -207,5 +290,39 @@ mod tests {
         // With 4 blocked, the long way.
         let blocked = [false, false, false, false, true];
         assert_eq!(g.shortest_path(0, 3, &blocked), Some(vec![0, 1, 2, 3]));
+    }
+
+    #[test]
+    fn truncate_restores_edges_and_nodes() {
+        let mut g = ReebGraph::default();
+        for i in 0..4 {
+            g.add_node(NodeKind::Ribbon, i, i as u32);
+        }
+        g.add_edge(0, 1);
+        g.add_edge(1, 2);
+        let size = g.size();
+        let cp = g.uf.checkpoint();
+        g.add_node(NodeKind::Contour, 7, 3);
+        g.add_edge(4, 1);
+        g.add_edge(2, 3);
+        g.add_edge(3, 0);
+        assert_eq!(g.shortest_path(0, 3, &[]), Some(vec![0, 3]));
+        assert_eq!(g.shortest_path(4, 0, &[]), Some(vec![4, 1, 0]));
+        g.truncate(size);
+        g.uf.rollback(cp);
+        assert_eq!(g.size(), (4, 2));
+        assert_eq!(g.shortest_path(0, 2, &[]), Some(vec![0, 1, 2]));
+        assert_eq!(g.shortest_path(0, 3, &[]), None);
+        let mut around = Vec::new();
+        g.neighbours(1, &mut around);
+        assert_eq!(around, vec![0, 2]);
+        assert_eq!(
+            g.node(2),
+            Node {
+                kind: NodeKind::Ribbon,
+                level: 2,
+                local: 2
+            }
+        );
     }
 }
