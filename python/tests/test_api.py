@@ -451,6 +451,15 @@ def test_a_truncated_file_is_an_oserror(tmp_path):
         isotopo.load(bad)
 
 
+def test_a_scratch_file_that_cannot_be_made_is_an_oserror(tmp_path, monkeypatch):
+    # Out of core, the planes beyond the window wait in a scratch file in TMPDIR.
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "missing"))
+    with pytest.raises(OSError, match="scratch file of the planes.*missing.*TMPDIR"):
+        isotopo.analyze(torus(), 0.0, max_slices=2)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    assert len(isotopo.analyze(torus(), 0.0, max_slices=2)) == 1
+
+
 def test_save_never_overwrites_the_input(tmp_path):
     src = tmp_path / "in.nii.gz"
     isotopo.save(src, torus().astype(np.float32))

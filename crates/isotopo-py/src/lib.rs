@@ -62,7 +62,7 @@ fn to_python(e: isotopo::Error, progress: &PyProgress) -> PyErr {
         E::Usage(_) => PyValueError::new_err(msg),
         E::Input { ref path, .. } if path.as_os_str() == "<memory>" => PyValueError::new_err(msg),
         E::Input { .. } => PyOSError::new_err(msg),
-        E::Io { ref source, .. } => match source.kind() {
+        E::Io { ref source, .. } | E::Scratch { ref source, .. } => match source.kind() {
             std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(msg),
             std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(msg),
             _ => PyOSError::new_err(msg),

@@ -32,6 +32,16 @@ pub enum Error {
         /// The operating system's error.
         source: io::Error,
     },
+    /// A scratch file a job keeps out of memory (in `TMPDIR`) could not be made, written or read
+    /// back: most often a full disk.
+    Scratch {
+        /// What was being done: "write the scratch file of the loops in /tmp".
+        what: String,
+        /// The operating system's error.
+        source: io::Error,
+        /// What to do about it.
+        advice: &'static str,
+    },
     /// The options do not make sense together (missing `--raw-dims`, output equal to input…).
     Usage(String),
     /// A bug: an internal invariant failed. Reported rather than panicking.
@@ -78,6 +88,19 @@ impl Error {
         }
     }
 
+    /// A scratch file in `TMPDIR` failed: `action` ("write") on the scratch file of `of` ("the
+    /// loops").
+    pub(crate) fn scratch(action: &str, of: &str, source: io::Error, advice: &'static str) -> Self {
+        Error::Scratch {
+            what: format!(
+                "cannot {action} the scratch file of {of} in {}",
+                std::env::temp_dir().display()
+            ),
+            source,
+            advice,
+        }
+    }
+
     /// Options that do not make sense together, with what to do instead.
     pub fn usage(msg: impl Into<String>) -> Self {
         Error::Usage(msg.into())
@@ -108,6 +131,11 @@ impl fmt::Display for Error {
                 action,
                 source
             ),
+            Error::Scratch {
+                what,
+                source,
+                advice,
+            } => write!(f, "{what}: {source}; {advice}"),
             Error::Usage(msg) => write!(f, "{msg}"),
             Error::Internal(msg) => write!(f, "internal error (please report): {msg}"),
             Error::Memory {
@@ -144,7 +172,7 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Error::Io { source, .. } => Some(source),
+            Error::Io { source, .. } | Error::Scratch { source, .. } => Some(source),
             _ => None,
         }
     }

@@ -179,11 +179,7 @@ const REEB_COLOUR: [u8; 3] = [40, 90, 255];
 const CROSS_COLOUR: [u8; 3] = [255, 50, 40];
 
 fn loops_scratch(e: std::io::Error) -> Error {
-    Error::usage(format!(
-        "cannot write the scratch file of the loops in {}: {e}; set TMPDIR to a writable folder \
-         with room",
-        std::env::temp_dir().display()
-    ))
+    Error::scratch("use", "the loops", e, crate::spool::TMPDIR_ADVICE)
 }
 
 impl LoopsWriter {

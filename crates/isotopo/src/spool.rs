@@ -19,12 +19,11 @@ pub(crate) struct Place {
 }
 
 fn scratch_error(e: std::io::Error) -> Error {
-    Error::usage(format!(
-        "cannot write the scratch file of the results in {}: {e}; set TMPDIR to a writable \
-         folder with room",
-        std::env::temp_dir().display()
-    ))
+    Error::scratch("write", "the results", e, TMPDIR_ADVICE)
 }
+
+/// What to do when a scratch file fails.
+pub(crate) const TMPDIR_ADVICE: &str = "set TMPDIR to a writable folder with room";
 
 impl Spool {
     pub(crate) fn new() -> Result<Spool> {
@@ -70,7 +69,7 @@ impl SpoolReader {
         let mut bytes = vec![0u8; place.len as usize];
         self.file
             .read_exact_at(&mut bytes, place.offset)
-            .map_err(|e| Error::usage(format!("cannot read back the scratch file: {e}")))?;
+            .map_err(|e| Error::scratch("read back", "the results", e, TMPDIR_ADVICE))?;
         Ok(bytes)
     }
 }

@@ -148,13 +148,14 @@ struct PlaneStore {
 
 /// The scratch file could not be made or written: say where it goes and how to move it.
 fn scratch_error(what: &str, bytes: u64, e: std::io::Error) -> Error {
-    Error::usage(format!(
-        "cannot {what} the scratch file of the planes out of memory ({} MB) in {}: {e}; set \
-         TMPDIR to a writable folder with room, or --max-slices 0 to keep the whole volume in \
-         memory",
-        bytes.div_ceil(1 << 20),
-        std::env::temp_dir().display()
-    ))
+    let of = format!("the planes out of memory ({} MB)", bytes.div_ceil(1 << 20));
+    Error::scratch(
+        what,
+        &of,
+        e,
+        "set TMPDIR to a writable folder with room, or --max-slices 0 to keep the whole volume \
+         in memory",
+    )
 }
 
 impl PlaneStore {
