@@ -87,6 +87,18 @@ impl Frame {
         o
     }
 
+    /// An original-coordinate box in local coordinates (lowest and highest corners).
+    pub fn to_local_box(&self, b: &crate::volume::BBox) -> ([i64; 3], [i64; 3]) {
+        let local = |o: [i64; 3]| -> [i64; 3] {
+            std::array::from_fn(|k| o[self.uvw[k]] - self.offset[self.uvw[k]])
+        };
+        let (a, c) = (local(b.min), local(b.max));
+        (
+            std::array::from_fn(|k| a[k].min(c[k])),
+            std::array::from_fn(|k| a[k].max(c[k])),
+        )
+    }
+
     /// Local integer coordinates to original ones.
     #[inline]
     pub fn to_original_i(&self, p: [i64; 3]) -> [i64; 3] {
@@ -484,5 +496,23 @@ impl MaskVolume {
             self.dims,
             &crate::volume::Affine::from_spacing([1.0; 3], [0.0; 3]),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_goes_back_to_local_coordinates() {
+        for axis in [Axis::X, Axis::Y, Axis::Z] {
+            let mut frame = Frame::for_axis(axis);
+            frame.offset = [3, -2, 7];
+            let (p, q) = ([1, 5, -1], [4, 2, 9]);
+            let mut b = crate::volume::BBox::EMPTY;
+            b.include(frame.to_original_i(p));
+            b.include(frame.to_original_i(q));
+            assert_eq!(frame.to_local_box(&b), ([1, 2, -1], [4, 5, 9]), "{axis:?}");
+        }
     }
 }

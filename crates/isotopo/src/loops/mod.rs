@@ -377,6 +377,25 @@ impl Region for OneRibbon<'_> {
     }
 }
 
+/// Cubes `lo ..= hi` (lower corners, local coordinates, inclusive).
+type CubeBox = ([i64; 3], [i64; 3]);
+
+fn in_box(q: [i64; 3], (lo, hi): CubeBox) -> bool {
+    (0..3).all(|k| lo[k] <= q[k] && q[k] <= hi[k])
+}
+
+/// The part of a ribbon in a box of cubes, as a region.
+struct RibbonInBox<'c> {
+    ribbon: OneRibbon<'c>,
+    within: CubeBox,
+}
+
+impl Region for RibbonInBox<'_> {
+    fn allows(&self, p: &PieceRef) -> bool {
+        in_box(p.cube, self.within) && self.ribbon.allows(p)
+    }
+}
+
 /// The homology generators of ribbon `ribbon` of slice `slice` of the swept volume, its
 /// boundary contours capped: 2 × its genus closed curves on the surface that span every loop of
 /// the capped ribbon (a tree–cotree decomposition, see `sweep::local`).
@@ -386,6 +405,18 @@ pub fn ribbon_generators(
     slice: i64,
     ribbon: u32,
 ) -> Option<Vec<Vec<Vertex>>> {
+    ribbon_generators_within(top, cache, slice, ribbon, None)
+}
+
+/// [`ribbon_generators`] of the part of the ribbon in a box of cubes (its other boundary curves
+/// capped too), or of all of it.
+fn ribbon_generators_within(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    slice: i64,
+    ribbon: u32,
+    within: Option<CubeBox>,
+) -> Option<Vec<Vec<Vertex>>> {
     cache.ensure(top.vol, slice);
     let (sl, _) = cache.slices.get(&slice)?;
     let table = top.table;
@@ -393,6 +424,9 @@ pub fn ribbon_generators(
     for cube in &sl.cubes {
         let case = &table[cube.case as usize];
         let q = [cube.i as i64 - 1, cube.j as i64 - 1, slice];
+        if within.is_some_and(|b| !in_box(q, b)) {
+            continue;
+        }
         for k in 0..case.n_pieces as usize {
             if sl.piece_ribbon[cube.first_piece as usize + k] == ribbon {
                 for lp in &case.pieces[k].loops {
@@ -404,12 +438,17 @@ pub fn ribbon_generators(
     verts.sort();
     verts.dedup();
     let cache: &SliceCache = cache;
-    let region = OneRibbon {
+    let ribbon = OneRibbon {
         cache,
         slice,
         ribbon,
     };
-    crate::sweep::local::generators(top, &verts, &region)
+    match within {
+        None => crate::sweep::local::generators(top, &verts, &ribbon),
+        Some(within) => {
+            crate::sweep::local::generators(top, &verts, &RibbonInBox { ribbon, within })
+        }
+    }
 }
 
 /// A first loop around a top-level Reeb cycle, chained ribbon by ribbon: from a vertex of the
@@ -552,6 +591,12 @@ fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<
 /// homology (on the swept surface itself) nearest to where the handle was found. It goes round
 /// a handle of that ribbon, the same one or a neighbour of it; the searches from it then
 /// measure a handle of the ribbon rather than none.
+///
+/// The generators of the part of the ribbon round the handle come first, in growing boxes: in
+/// a sponge the ribbon is the whole slice, with thousands of handles, and all its generators
+/// took tens of megabytes. One is taken when a loop in a box round it crosses it once (so it
+/// goes round a handle of the surface, not only of the cropped part); failing that, the nearest
+/// generator of the whole ribbon.
 fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Vec<Vertex>> {
     let (slice, ribbon) = h.located.ribbon?;
     let vol = top.vol;
@@ -565,12 +610,39 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
             })
             .fold(f64::INFINITY, f64::min)
     };
-    let cycles = ribbon_generators(top, cache, slice, ribbon)?;
-    cycles
-        .into_iter()
-        .filter(|c| c.len() >= 3)
-        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+    let nearest = |cycles: Vec<Vec<Vertex>>| {
+        cycles
+            .into_iter()
+            .filter(|c| c.len() >= 3)
+            .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+    };
+    let (lo, hi) = vol.frame.to_local_box(b);
+    let grow = |m: i64| -> CubeBox { (lo.map(|x| x - m), hi.map(|x| x + m)) };
+    let margins = if b.min[0] <= b.max[0] {
+        &RIBBON_LOOP_MARGINS[..]
+    } else {
+        &[]
+    };
+    for &margin in margins {
+        let near = ribbon_generators_within(top, cache, slice, ribbon, Some(grow(margin)));
+        let Some(lp) = near.and_then(nearest) else {
+            continue;
+        };
+        let (lo, hi) = grow(2 * margin);
+        let around = InBox {
+            lo,
+            hi,
+            filter: |_: &PieceRef| true,
+        };
+        if odd_loop(top, &lp, &around, usize::MAX).found.is_some() {
+            return Some(lp);
+        }
+    }
+    nearest(ribbon_generators(top, cache, slice, ribbon)?)
 }
+
+/// Margins (voxels) round an intra-ribbon handle's box in which [`ribbon_loop`] looks first.
+const RIBBON_LOOP_MARGINS: [i64; 3] = [4, 16, 64];
 
 /// A loop crossing `curve` once, for when none is shorter than the limit and any will do: for a
 /// top-level handle's cut, chained through its cycle's ribbons (cheap round a tall cycle); else
