@@ -19,7 +19,7 @@ use crate::grid::{Frame, MaskVolume};
 use crate::surface::geometry::Geometry;
 use crate::surface::search::{
     any_odd_loop, odd_loop, odd_simple_loop, path_to, shortest_odd_loop, Everywhere, FastMap,
-    Graph, GraphCache, InBox, OddLoop, PieceSet, Region,
+    Graph, InBox, OddLoop, PieceSet, Region,
 };
 use crate::surface::{PieceRef, Vertex};
 use crate::sweep::{CycleVolume, Handle, NodeKind};
@@ -249,50 +249,6 @@ pub struct SliceCache {
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
     bytes: usize,
-    /// The mini-volume searched last, for the next handle of the same ribbon.
-    mini: Option<MiniCache>,
-}
-
-/// An intra-ribbon handle's mini-volume with the neighbourhoods and surfels its searches built:
-/// the handles of one ribbon share it, and a sponge's slice-wide ribbon has hundreds of them,
-/// each of which built them all again.
-struct MiniCache {
-    volume: std::sync::Arc<MaskVolume>,
-    graph: GraphCache,
-    slices: FastMap<i64, SliceSurfels>,
-    bytes: usize,
-}
-
-/// Beyond this many vertices numbered or bytes of surfels a mini-volume's cache starts afresh.
-const MINI_CACHE_VERTICES: usize = 1 << 13;
-const MINI_CACHE_BYTES: usize = 1 << 20;
-
-impl MiniCache {
-    /// The cache of `volume`: `held` if it is that volume's and within its budget, else empty.
-    fn of(held: Option<MiniCache>, volume: &std::sync::Arc<MaskVolume>) -> MiniCache {
-        held.filter(|m| {
-            std::sync::Arc::ptr_eq(&m.volume, volume)
-                && m.graph.len() <= MINI_CACHE_VERTICES
-                && m.bytes <= MINI_CACHE_BYTES
-        })
-        .unwrap_or_else(|| MiniCache {
-            volume: volume.clone(),
-            graph: GraphCache::default(),
-            slices: FastMap::default(),
-            bytes: 0,
-        })
-    }
-
-    /// The surfels of slice `s` of the mini-volume.
-    fn slice(&mut self, s: i64, conn: Connectivity) -> &SliceSurfels {
-        let vol = &self.volume;
-        let bytes = &mut self.bytes;
-        self.slices.entry(s).or_insert_with(|| {
-            let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
-            *bytes += slice_bytes(&sl);
-            sl
-        })
-    }
 }
 
 /// Vertices of the contours a cache keeps walked (about 4 MiB; forgotten all at once beyond).
@@ -319,7 +275,6 @@ impl SliceCache {
             contour_vertices: 0,
             clock: 0,
             bytes: 0,
-            mini: None,
         }
     }
 
@@ -570,7 +525,7 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
 
 /// Pieces of the given ribbons of a mini-volume's cycle, within the original slice.
 fn mini_cycle_region(
-    mini: &mut MiniCache,
+    mini: &MaskVolume,
     h: &Handle,
     allowed: ([i64; 3], [i64; 3]),
     conn: Connectivity,
@@ -584,7 +539,7 @@ fn mini_cycle_region(
         }
     }
     for (&s, ribbons) in &by_slice {
-        let sl = mini.slice(s, conn);
+        let sl = SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
         for cube in &sl.cubes {
             let q = [cube.i as i64 - 1, cube.j as i64 - 1, s];
             if !(0..3).all(|k| allowed.0[k] <= q[k] && q[k] <= allowed.1[k]) {
@@ -604,21 +559,18 @@ fn mini_cycle_region(
 /// A loop crossing the handle's cut once, in the swept volume's local coordinates, found in the
 /// capped mini-volume of an intra-ribbon handle: around the cycle within the original slice,
 /// failing that anywhere in the slice. `None` for a handle of the swept volume itself.
-fn mini_volume_loop(
-    h: &Handle,
-    conn: Connectivity,
-    vol: &MaskVolume,
-    held: &mut Option<MiniCache>,
-) -> Option<Vec<Vertex>> {
+fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<Vec<Vertex>> {
     let l = &h.located;
     let CycleVolume::Mini(mini) = &l.volume else {
         return None;
     };
     let allowed = l.allowed?;
-    let mut cache = MiniCache::of(held.take(), mini);
-    let region = (!l.direct).then(|| mini_cycle_region(&mut cache, h, allowed, conn));
-    let mut g = Graph::with_cache(mini, cases(conn), std::mem::take(&mut cache.graph));
-    let found = region.and_then(|region| odd_loop(&mut g, &l.cut, &region, usize::MAX).found);
+    let mut g = Graph::new(mini, cases(conn));
+    let mut found = None;
+    if !l.direct {
+        let region = mini_cycle_region(mini, h, allowed, conn);
+        found = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
+    }
     let found = found.or_else(|| {
         let region = InBox {
             lo: allowed.0,
@@ -626,10 +578,7 @@ fn mini_volume_loop(
             filter: |_: &PieceRef| true,
         };
         odd_loop(&mut g, &l.cut, &region, usize::MAX).found
-    });
-    cache.graph = g.into_cache();
-    *held = Some(cache);
-    let found = found?;
+    })?;
     let mapped: Vec<Vertex> = found
         .into_iter()
         .map(|v| map_vertex(v, &mini.frame, &vol.frame))
@@ -747,7 +696,7 @@ fn find(
     let Some(p) = (if top_level {
         Some(h.located.cut.clone())
     } else {
-        mini_volume_loop(h, conn, vol, &mut cache.mini).or_else(|| ribbon_loop(top, cache, h))
+        mini_volume_loop(h, conn, vol).or_else(|| ribbon_loop(top, cache, h))
     }) else {
         return Found {
             reeb: None,
