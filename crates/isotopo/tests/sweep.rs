@@ -247,7 +247,7 @@ fn rewinding_reproduces_the_sweep() {
                 while b.next <= stop && !b.done(&masks) {
                     b.step(&masks).unwrap();
                 }
-                b.rewind(&masks, stop - 3 - round as i64 % 3);
+                b.rewind(&masks, stop - 3 - round as i64 % 3).unwrap();
             }
             while !b.done(&masks) {
                 b.step(&masks).unwrap();
@@ -295,5 +295,38 @@ fn out_of_core_sweep_finds_the_same_handles() {
                 assert_eq!(a.located.bbox, b.located.bbox, "{what}");
             }
         }
+    }
+}
+
+/// A sweep made without rewind keeps no union log: it finds the same handles, and refuses to
+/// be rewound (an error, not a wrong graph).
+#[test]
+fn a_sweep_without_rewind_finds_the_same_and_refuses_to_rewind() {
+    use isotopo::sweep::Sweeper;
+    let mut rng = Rng(11);
+    let dims = [20, 18, 16];
+    let v = common::smoothed_noise(dims, 1, &mut rng);
+    let vol = common::volume_from(dims, &v);
+    let iso = common::quantile(&v, 0.5);
+    for conn in BOTH {
+        let mut src = vol.clone();
+        let opts = common::opts(iso, conn);
+        let masks = MaskVolume::from_reader(&mut src, &opts, Axis::Z, None, &NoProgress).unwrap();
+        let sweep = |mut s: Sweeper| {
+            while !s.done(&masks) {
+                s.step(&masks).unwrap();
+            }
+            let found: Vec<_> = s
+                .handles()
+                .iter()
+                .map(|(z, h)| (*z, h.cut.clone()))
+                .collect();
+            (found, s)
+        };
+        let (a, _) = sweep(Sweeper::new(conn));
+        let (b, mut without) = sweep(Sweeper::new(conn).without_rewind());
+        assert!(!a.is_empty());
+        assert_eq!(a, b);
+        assert!(without.rewind(&masks, 3).is_err());
     }
 }

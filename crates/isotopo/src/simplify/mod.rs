@@ -832,7 +832,7 @@ impl<'a> Run<'a> {
         let to = (lowest - 1).min(s);
         caches.forget_near(walls);
         self.lasting.forget_near(walls);
-        sweeper.rewind(vol, to);
+        sweeper.rewind(vol, to)?;
         self.kept.retain(|(at, _)| *at < to);
         self.basis.retain(|(at, _)| *at < to);
         self.rewinds += 1;
