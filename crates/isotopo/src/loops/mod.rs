@@ -380,22 +380,6 @@ impl Region for OneRibbon<'_> {
 /// Cubes `lo ..= hi` (lower corners, local coordinates, inclusive).
 type CubeBox = ([i64; 3], [i64; 3]);
 
-fn in_box(q: [i64; 3], (lo, hi): CubeBox) -> bool {
-    (0..3).all(|k| lo[k] <= q[k] && q[k] <= hi[k])
-}
-
-/// The part of a ribbon in a box of cubes, as a region.
-struct RibbonInBox<'c> {
-    ribbon: OneRibbon<'c>,
-    within: CubeBox,
-}
-
-impl Region for RibbonInBox<'_> {
-    fn allows(&self, p: &PieceRef) -> bool {
-        in_box(p.cube, self.within) && self.ribbon.allows(p)
-    }
-}
-
 /// The homology generators of ribbon `ribbon` of slice `slice` of the swept volume, its
 /// boundary contours capped: 2 × its genus closed curves on the surface that span every loop of
 /// the capped ribbon (a tree–cotree decomposition, see `sweep::local`).
@@ -418,13 +402,24 @@ fn ribbon_generators_within(
     within: Option<CubeBox>,
 ) -> Option<Vec<Vec<Vertex>>> {
     cache.ensure(top.vol, slice);
+    let cache: &SliceCache = cache;
     let (sl, _) = cache.slices.get(&slice)?;
+    let whole = OneRibbon {
+        cache,
+        slice,
+        ribbon,
+    };
+    let part = within.map(|(lo, hi)| InBox {
+        lo,
+        hi,
+        filter: |p: &PieceRef| whole.allows(p),
+    });
     let table = top.table;
     let mut verts = Vec::new();
     for cube in &sl.cubes {
         let case = &table[cube.case as usize];
         let q = [cube.i as i64 - 1, cube.j as i64 - 1, slice];
-        if within.is_some_and(|b| !in_box(q, b)) {
+        if part.as_ref().is_some_and(|b| !b.holds_cube(q)) {
             continue;
         }
         for k in 0..case.n_pieces as usize {
@@ -437,17 +432,9 @@ fn ribbon_generators_within(
     }
     verts.sort();
     verts.dedup();
-    let cache: &SliceCache = cache;
-    let ribbon = OneRibbon {
-        cache,
-        slice,
-        ribbon,
-    };
-    match within {
-        None => crate::sweep::local::generators(top, &verts, &ribbon),
-        Some(within) => {
-            crate::sweep::local::generators(top, &verts, &RibbonInBox { ribbon, within })
-        }
+    match &part {
+        None => crate::sweep::local::generators(top, &verts, &whole),
+        Some(part) => crate::sweep::local::generators(top, &verts, part),
     }
 }
 
@@ -616,13 +603,15 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
             .filter(|c| c.len() >= 3)
             .min_by(|a, b| distance(a).total_cmp(&distance(b)))
     };
-    let (lo, hi) = vol.frame.to_local_box(b);
-    let grow = |m: i64| -> CubeBox { (lo.map(|x| x - m), hi.map(|x| x + m)) };
-    let margins = if b.min[0] <= b.max[0] {
+    // An empty box (none in practice) goes straight to the whole ribbon.
+    let near = (b.min[0] <= b.max[0]).then(|| vol.frame.to_local_box(b));
+    let margins = if near.is_some() {
         &RIBBON_LOOP_MARGINS[..]
     } else {
         &[]
     };
+    let (lo, hi) = near.unwrap_or_default();
+    let grow = |m: i64| -> CubeBox { (lo.map(|x| x - m), hi.map(|x| x + m)) };
     for &margin in margins {
         let near = ribbon_generators_within(top, cache, slice, ribbon, Some(grow(margin)));
         let Some(lp) = near.and_then(nearest) else {

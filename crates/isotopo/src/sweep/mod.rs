@@ -523,9 +523,14 @@ impl Sweeper {
         let cut = walk_contour(surface, v, level as i64)
             .ok_or_else(|| Error::Internal("a contour does not close".into()))?;
         let cycle = path.iter().map(|&n| self.graph.node(n)).collect();
+        // A ribbon's entry is unused: zeros, not its box corner.
+        let unused = Vertex { p: [0; 3], axis: 0 };
         let contour_starts = path
             .iter()
-            .map(|&n| self.places[n as usize].contour_at().0)
+            .map(|&n| match self.graph.node(n).kind {
+                NodeKind::Contour => self.places[n as usize].contour_at().0,
+                NodeKind::Ribbon => unused,
+            })
             .collect();
         let cut_at = path.iter().position(|&n| n == cut_node).unwrap_or(0);
         Ok(LocatedHandle {

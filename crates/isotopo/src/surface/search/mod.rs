@@ -450,9 +450,16 @@ pub struct InBox<F: Fn(&PieceRef) -> bool> {
     pub filter: F,
 }
 
+impl<F: Fn(&PieceRef) -> bool> InBox<F> {
+    /// Is the cube with lower corner `q` in the box?
+    pub fn holds_cube(&self, q: [i64; 3]) -> bool {
+        (0..3).all(|k| self.lo[k] <= q[k] && q[k] <= self.hi[k])
+    }
+}
+
 impl<F: Fn(&PieceRef) -> bool> Region for InBox<F> {
     fn allows(&self, p: &PieceRef) -> bool {
-        (0..3).all(|k| self.lo[k] <= p.cube[k] && p.cube[k] <= self.hi[k]) && (self.filter)(p)
+        self.holds_cube(p.cube) && (self.filter)(p)
     }
 }
 
