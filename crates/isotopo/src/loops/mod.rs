@@ -558,20 +558,66 @@ fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<
         let region = mini_cycle_region(mini, h, allowed, conn);
         found = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
     }
-    let found = found.or_else(|| {
-        let region = InBox {
-            lo: allowed.0,
-            hi: allowed.1,
-            filter: |_: &PieceRef| true,
-        };
-        odd_loop(&mut g, &l.cut, &region, usize::MAX).found
-    })?;
+    let found = found.or_else(|| shortest_odd_loop_near(&mut g, &l.cut, allowed))?;
     let mapped: Vec<Vertex> = found
         .into_iter()
         .map(|v| map_vertex(v, &mini.frame, &vol.frame))
         .collect();
     Some(mapped)
 }
+
+/// The shortest loop within the box `allowed` (cubes, inclusive) crossing `cut` an odd number
+/// of times, looked for in growing boxes round the cut before the whole of `allowed`.
+///
+/// A loop of `L` edges crossing the cut strays at most `L / 2` edges from it, and an edge moves
+/// at most one voxel along each axis: the cubes of its pieces lie within `L / 2 + 1` voxels of
+/// the cut's. So a loop shorter than `2 m` edges found in the box `m` voxels beyond the cut's
+/// cubes is the shortest in all of `allowed`; a longer one is looked for in the next box.
+///
+/// ```text
+///   +-------------------------+  allowed (a slice of a sponge: thousands of handles)
+///   |      +-----------+      |
+///   |      |  +-----+  |      |  the cut's cubes, then m = 4, 16, 64 voxels round them:
+///   |      |  | cut |  |      |  a noise handle's loop (a few edges) is settled in the
+///   |      |  +-----+  |      |  first box, where a search of the slice visited thousands
+///   |      +-----------+      |  of vertices
+///   +-------------------------+
+/// ```
+fn shortest_odd_loop_near(g: &mut Graph, cut: &[Vertex], allowed: CubeBox) -> Option<Vec<Vertex>> {
+    let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+    for v in cut {
+        for k in 0..3 {
+            // The cubes round vertex v have lower corners v.p - 1 ..= v.p.
+            lo[k] = lo[k].min(v.p[k] - 1);
+            hi[k] = hi[k].max(v.p[k]);
+        }
+    }
+    for &m in &NEAR_LOOP_MARGINS {
+        let b_lo: [i64; 3] = std::array::from_fn(|k| (lo[k] - m).max(allowed.0[k]));
+        let b_hi: [i64; 3] = std::array::from_fn(|k| (hi[k] + m).min(allowed.1[k]));
+        if b_lo == allowed.0 && b_hi == allowed.1 {
+            break;
+        }
+        let near = InBox {
+            lo: b_lo,
+            hi: b_hi,
+            filter: |_: &PieceRef| true,
+        };
+        let r = odd_loop(g, cut, &near, 2 * m as usize);
+        if r.found.is_some() && r.exact {
+            return r.found;
+        }
+    }
+    let region = InBox {
+        lo: allowed.0,
+        hi: allowed.1,
+        filter: |_: &PieceRef| true,
+    };
+    odd_loop(g, cut, &region, usize::MAX).found
+}
+
+/// Margins (voxels) of the boxes round a cut in which [`shortest_odd_loop_near`] looks first.
+const NEAR_LOOP_MARGINS: [i64; 3] = [4, 16, 64];
 
 /// For an intra-ribbon handle whose capped mini-volume gave no loop on the original surface
 /// (one found directly whose curve runs through the caps): the generator of its ribbon's
