@@ -1025,15 +1025,24 @@ fn near_short_loops(
 }
 
 /// Breadth-first search from every vertex of `cut` at once, each state remembering its source.
-/// Reaching a vertex of `cut` with odd parity closes a loop: the path, then back along `cut` to
-/// where it started. Returns the shortest such walk (not yet simple) and its start, and whether
-/// the search was conclusive (it did not run out of budget): then no walk means that no loop
-/// crossing `cut` an odd number of times is shorter than `limit` (such a loop passes through a
-/// vertex of `cut`, whose odd state the search reaches no later than the loop's length).
+/// A vertex whose two states are both reached closes a loop: the path from one source to it,
+/// back to the other source (crossing `cut` an odd number of times in all), then along `cut` to
+/// where it started. Returns the shortest such walk found (not yet simple) and its start, and
+/// whether the search was conclusive (it did not run out of budget): then no walk means that no
+/// loop crossing `cut` an odd number of times is shorter than `limit`.
+///
+/// ```text
+///   src_a ~~~~~~~> v <~~~~~~~ src_b      (v, 0) reached from src_a, (v, 1) from src_b:
+///     |                         |        both halves of a loop meet in its middle, so the
+///   --+---------- cut ----------+--      search goes half as deep as the loop is long
+/// ```
+///
+/// A loop of length `L` through a vertex `s` of `cut` has a middle vertex whose two states are
+/// each at most `ceil(L / 2)` from `s`: the search stops at that depth for the best walk so far
+/// (or `limit`), having seen every pair of states that a shorter loop makes meet.
 ///
 /// When conclusive and a walk was found, also returns every vertex whose two states were both
-/// reached, with the sum of their distances (see [`near_short_loops`]): the search saw every
-/// state up to the walk's length deep, which covers both halves of any shorter loop.
+/// reached, with the sum of their distances (see [`near_short_loops`]).
 type FirstWalk = Option<(Vec<Vertex>, Vertex)>;
 type Meets = Option<Vec<(u32, usize)>>;
 fn multi_source(
@@ -1044,7 +1053,6 @@ fn multi_source(
     limit: usize,
 ) -> (FirstWalk, bool, Meets) {
     let n = cut.len();
-    // Position on the cut of each of its vertices (by number).
     let Some(nums) = cut
         .iter()
         .map(|&v| g.index(v))
@@ -1052,12 +1060,16 @@ fn multi_source(
     else {
         return (None, false, None);
     };
-    let pos: FastMap<u32, usize> = nums.iter().enumerate().map(|(i, &v)| (v, i)).collect();
     let gen = g.scratch.next_generation();
     g.scratch.ensure((g.arena.len() + 1) << 1, 0);
     let mut queue: VecDeque<u32> = VecDeque::new();
     // Every state reached, for the meets.
     let mut seen: Vec<u32> = Vec::new();
+    let mut best: Option<(usize, u32, u32)> = None; // (length, the two meeting states)
+    let along = |a: usize, b: usize| {
+        let d = a.abs_diff(b);
+        d.min(n - d)
+    };
     for (i, &vi) in nums.iter().enumerate() {
         let st = vi << 1;
         let sc = &mut g.scratch;
@@ -1070,27 +1082,27 @@ fn multi_source(
             seen.push(st);
         }
     }
-    let along = |a: usize, b: usize| {
-        let d = a.abs_diff(b);
-        d.min(n - d)
-    };
-    let mut best: Option<(usize, u32, usize)> = None; // (length, end state, end position)
+    // Deepest level that can hold the middle of a loop shorter than `below`.
+    let half = |below: usize| below.saturating_sub(1).div_ceil(2);
     let mut budget = FIRST_BUDGET;
     while let Some(st) = queue.pop_front() {
         let (d, src) = (g.scratch.dist[st as usize], g.scratch.source[st as usize]);
-        if best.is_some_and(|b| d as usize + 1 >= b.0) || d as usize + 1 >= limit || budget == 0 {
+        let below = best.map_or(limit, |b| b.0.min(limit));
+        if d as usize + 1 > half(below) || budget == 0 {
             break;
         }
         budget -= 1;
         let (reached, k) = expand(g, curves, region, st, gen);
         for &ns in &reached[..k] {
-            g.scratch.source[ns as usize] = src;
-            if ns & 1 == 1 {
-                if let Some(&j) = pos.get(&(ns >> 1)) {
-                    let total = d as usize + 1 + along(src as usize, j);
-                    if best.is_none_or(|b| total < b.0) {
-                        best = Some((total, ns, j));
-                    }
+            let sc = &mut g.scratch;
+            sc.source[ns as usize] = src;
+            let other = ns ^ 1;
+            if sc.stamp[other as usize] == gen {
+                let far = sc.source[other as usize] as usize;
+                let total = d as usize + 1 + sc.dist[other as usize] as usize;
+                let total = total + along(src as usize, far);
+                if best.is_none_or(|b| total < b.0) {
+                    best = Some((total, ns, other));
                 }
             }
             queue.push_back(ns);
@@ -1098,7 +1110,7 @@ fn multi_source(
         }
     }
     let conclusive = budget > 0;
-    let Some((_, end, j)) = best else {
+    let Some((_, end, other)) = best else {
         return (None, conclusive, None);
     };
     let sc = &g.scratch;
@@ -1111,21 +1123,32 @@ fn multi_source(
             })
             .collect()
     });
-    let src = g.scratch.source[end as usize] as usize;
-    // The path from the source to the end, then along the cut from the end back to the source
-    // (excluding both).
-    let mut path = states_to(g, end, 1);
-    let forward = (src + n - j) % n; // steps from j forward to src
-    let step: isize = if forward <= n - forward { 1 } else { -1 };
-    let mut i = j as isize;
-    loop {
-        i = (i + step).rem_euclid(n as isize);
-        if i as usize == src {
-            break;
+    let (a, b) = (
+        sc.source[end as usize] as usize,
+        sc.source[other as usize] as usize,
+    );
+    // From source a to the meeting vertex, back to source b, then along the cut from b to a
+    // (excluding both; nothing when a = b).
+    let mut walk = states_to(g, end, 1);
+    let mut back = states_to(g, other, 1);
+    back.pop(); // the meeting vertex
+    back.reverse();
+    walk.extend(back);
+    if a == b {
+        walk.pop();
+    } else {
+        let forward = (a + n - b) % n; // steps from b forward to a
+        let step: isize = if forward <= n - forward { 1 } else { -1 };
+        let mut i = b as isize;
+        loop {
+            i = (i + step).rem_euclid(n as isize);
+            if i as usize == a {
+                break;
+            }
+            walk.push(cut[i as usize]);
         }
-        path.push(cut[i as usize]);
     }
-    (Some((path, cut[src])), conclusive, meets)
+    (Some((walk, cut[a])), conclusive, meets)
 }
 
 /// The shortest path within the region from `from` to a vertex `is_target` accepts (`from`
