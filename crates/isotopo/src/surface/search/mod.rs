@@ -738,8 +738,9 @@ pub fn any_odd_loop(g: &mut Graph, cut: &[Vertex], region: &dyn Region) -> Optio
 /// The shortest loop through the region that crosses `cut` an odd number of times and each of
 /// `even` an even number of times, shorter than `limit` edges.
 ///
-/// A first breadth-first search from all of `cut` at once gives a loop (a path that crosses,
-/// closed along `cut`) and so an upper bound; then one search per vertex of `cut` that can carry
+/// A first breadth-first search from all of `cut` at once gives a loop (two paths from the cut
+/// that meet with opposite parities, closed along `cut`) and so an upper bound, going half as
+/// deep as that loop is long; then one search per vertex of `cut` that can carry
 /// a shorter loop (near a vertex whose two states the first search reached early), each half
 /// as deep as the best length so far, finds the shortest. Every search is bounded by the limit
 /// and by a budget of states ([`FIRST_BUDGET`], [`EXACT_BUDGET`]); when a budget runs out first,
