@@ -246,6 +246,8 @@ pub struct SliceCache {
     /// wall nearby).
     contours: FastMap<(i64, u64), std::sync::Arc<FastMap<u64, ()>>>,
     contour_vertices: usize,
+    /// The original slice's pieces in the mini-volume its latest intra-ribbon handle came from.
+    mini_rows: MiniRows,
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
     bytes: usize,
@@ -273,6 +275,7 @@ impl SliceCache {
             slices: FastMap::default(),
             contours: FastMap::default(),
             contour_vertices: 0,
+            mini_rows: MiniRows::default(),
             clock: 0,
             bytes: 0,
         }
@@ -510,14 +513,64 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
     odd_simple_loop(top, &l.cut, walk)
 }
 
+/// The pieces of a mini-volume within its original slice, with their ribbons, slice by slice of
+/// its sweep: what [`mini_cycle_region`] picks from for every intra-ribbon handle of one
+/// ribbon (a few hundred in a sponge's slice), built once for all of them rather than a whole
+/// slice of surfels per handle and per slice of its cycle.
+///
+/// Each piece packs into a `u64` (its cube's position along the row, the piece's index in
+/// the cube, its ribbon): under a megabyte for a whole 256-wide slice.
+#[derive(Default)]
+struct MiniRows {
+    mini: Option<std::sync::Arc<MaskVolume>>,
+    rows: FastMap<i64, Vec<u64>>,
+}
+
+impl MiniRows {
+    /// The row of slice `s` of `mini`'s sweep (the cubes of `allowed`, one row thick): each
+    /// piece as `cube's first coordinate << 40 | piece index << 32 | ribbon`.
+    fn row(
+        &mut self,
+        mini: &std::sync::Arc<MaskVolume>,
+        s: i64,
+        allowed: CubeBox,
+        conn: Connectivity,
+    ) -> &[u64] {
+        if !self
+            .mini
+            .as_ref()
+            .is_some_and(|m| std::sync::Arc::ptr_eq(m, mini))
+        {
+            self.mini = Some(mini.clone());
+            self.rows.clear();
+        }
+        self.rows.entry(s).or_insert_with(|| {
+            let table = cases(conn);
+            let sl = SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
+            let mut row = Vec::new();
+            for cube in &sl.cubes {
+                let q = [cube.i as i64 - 1, cube.j as i64 - 1, s];
+                if !(0..3).all(|k| allowed.0[k] <= q[k] && q[k] <= allowed.1[k]) {
+                    continue;
+                }
+                for k in 0..table[cube.case as usize].n_pieces as usize {
+                    let ribbon = sl.piece_ribbon[cube.first_piece as usize + k];
+                    row.push((q[0] as u64) << 40 | (k as u64) << 32 | ribbon as u64);
+                }
+            }
+            row
+        })
+    }
+}
+
 /// Pieces of the given ribbons of a mini-volume's cycle, within the original slice.
 fn mini_cycle_region(
-    mini: &MaskVolume,
+    mini: &std::sync::Arc<MaskVolume>,
     h: &Handle,
-    allowed: ([i64; 3], [i64; 3]),
+    allowed: CubeBox,
     conn: Connectivity,
+    rows: &mut MiniRows,
 ) -> PieceSet {
-    let table = cases(conn);
     let mut set = PieceSet::default();
     let mut by_slice: FastMap<i64, Vec<u32>> = FastMap::default();
     for n in &h.located.cycle {
@@ -525,18 +578,12 @@ fn mini_cycle_region(
             by_slice.entry(n.level as i64).or_default().push(n.local);
         }
     }
+    // The original slice is one row of cubes: its second coordinate is the box's.
+    let v = allowed.0[1];
     for (&s, ribbons) in &by_slice {
-        let sl = SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
-        for cube in &sl.cubes {
-            let q = [cube.i as i64 - 1, cube.j as i64 - 1, s];
-            if !(0..3).all(|k| allowed.0[k] <= q[k] && q[k] <= allowed.1[k]) {
-                continue;
-            }
-            let case = &table[cube.case as usize];
-            for k in 0..case.n_pieces as usize {
-                if ribbons.contains(&sl.piece_ribbon[cube.first_piece as usize + k]) {
-                    set.insert(q, k as u8);
-                }
+        for &piece in rows.row(mini, s, allowed, conn) {
+            if ribbons.contains(&(piece as u32)) {
+                set.insert([(piece >> 40) as i64, v, s], (piece >> 32) as u8);
             }
         }
     }
@@ -546,7 +593,12 @@ fn mini_cycle_region(
 /// A loop crossing the handle's cut once, in the swept volume's local coordinates, found in the
 /// capped mini-volume of an intra-ribbon handle: around the cycle within the original slice,
 /// failing that anywhere in the slice. `None` for a handle of the swept volume itself.
-fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<Vec<Vertex>> {
+fn mini_volume_loop(
+    h: &Handle,
+    conn: Connectivity,
+    vol: &MaskVolume,
+    rows: &mut MiniRows,
+) -> Option<Vec<Vertex>> {
     let l = &h.located;
     let CycleVolume::Mini(mini) = &l.volume else {
         return None;
@@ -555,7 +607,7 @@ fn mini_volume_loop(h: &Handle, conn: Connectivity, vol: &MaskVolume) -> Option<
     let mut g = Graph::new(mini, cases(conn));
     let mut found = None;
     if !l.direct {
-        let region = mini_cycle_region(mini, h, allowed, conn);
+        let region = mini_cycle_region(mini, h, allowed, conn, rows);
         found = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
     }
     let found = found.or_else(|| shortest_odd_loop_near(&mut g, &l.cut, allowed))?;
@@ -731,7 +783,7 @@ fn find(
     let Some(p) = (if top_level {
         Some(h.located.cut.clone())
     } else {
-        mini_volume_loop(h, conn, vol).or_else(|| ribbon_loop(top, cache, h))
+        mini_volume_loop(h, conn, vol, &mut cache.mini_rows).or_else(|| ribbon_loop(top, cache, h))
     }) else {
         return Found {
             reeb: None,
