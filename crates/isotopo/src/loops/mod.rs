@@ -522,7 +522,8 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
 /// the cube, its ribbon): under a megabyte for a whole 256-wide slice.
 #[derive(Default)]
 struct MiniRows {
-    mini: Option<std::sync::Arc<MaskVolume>>,
+    /// The mini-volume and box the rows are of.
+    of: Option<(std::sync::Arc<MaskVolume>, CubeBox)>,
     rows: FastMap<i64, Vec<u64>>,
 }
 
@@ -536,12 +537,14 @@ impl MiniRows {
         allowed: CubeBox,
         conn: Connectivity,
     ) -> &[u64] {
+        // The row packs a cube by its first coordinate: the box is one row, from 0 on.
+        debug_assert!(allowed.0[0] >= 0 && allowed.0[1] == allowed.1[1]);
         if !self
-            .mini
+            .of
             .as_ref()
-            .is_some_and(|m| std::sync::Arc::ptr_eq(m, mini))
+            .is_some_and(|(m, b)| std::sync::Arc::ptr_eq(m, mini) && *b == allowed)
         {
-            self.mini = Some(mini.clone());
+            self.of = Some((mini.clone(), allowed));
             self.rows.clear();
         }
         self.rows.entry(s).or_insert_with(|| {

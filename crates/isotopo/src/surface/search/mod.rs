@@ -1094,9 +1094,12 @@ fn multi_source(
         }
         budget -= 1;
         let (reached, k) = expand(g, curves, region, st, gen);
+        // Sources first: a state's partner may be among the states just reached.
         for &ns in &reached[..k] {
-            let sc = &mut g.scratch;
-            sc.source[ns as usize] = src;
+            g.scratch.source[ns as usize] = src;
+        }
+        for &ns in &reached[..k] {
+            let sc = &g.scratch;
             let other = ns ^ 1;
             if sc.stamp[other as usize] == gen {
                 let far = sc.source[other as usize] as usize;
