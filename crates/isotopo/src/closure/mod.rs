@@ -419,11 +419,7 @@ pub fn close(
     let hi = cubes.iter().fold([i64::MIN; 3], |m, q| {
         [m[0].max(q[0]), m[1].max(q[1]), m[2].max(q[2])]
     });
-    let near = InBox {
-        lo: lo.map(|x| x - 2),
-        hi: hi.map(|x| x + 2),
-        filter: |_: &PieceRef| true,
-    };
+    let near = InBox::cubes(lo.map(|x| x - 2), hi.map(|x| x + 2));
     let along = Tube::new(partner, lo.map(|x| x - 2), hi.map(|x| x + 2));
     for q in &changed {
         vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);

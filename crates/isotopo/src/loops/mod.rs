@@ -550,10 +550,11 @@ impl MiniRows {
         self.rows.entry(s).or_insert_with(|| {
             let table = cases(conn);
             let sl = SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
+            let within = InBox::cubes(allowed.0, allowed.1);
             let mut row = Vec::new();
             for cube in &sl.cubes {
                 let q = [cube.i as i64 - 1, cube.j as i64 - 1, s];
-                if !(0..3).all(|k| allowed.0[k] <= q[k] && q[k] <= allowed.1[k]) {
+                if !within.holds_cube(q) {
                     continue;
                 }
                 for k in 0..table[cube.case as usize].n_pieces as usize {
@@ -653,22 +654,12 @@ fn shortest_odd_loop_near(g: &mut Graph, cut: &[Vertex], allowed: CubeBox) -> Op
         if b_lo == allowed.0 && b_hi == allowed.1 {
             break;
         }
-        let near = InBox {
-            lo: b_lo,
-            hi: b_hi,
-            filter: |_: &PieceRef| true,
-        };
-        let r = odd_loop(g, cut, &near, 2 * m as usize);
+        let r = odd_loop(g, cut, &InBox::cubes(b_lo, b_hi), 2 * m as usize);
         if r.found.is_some() && r.exact {
             return r.found;
         }
     }
-    let region = InBox {
-        lo: allowed.0,
-        hi: allowed.1,
-        filter: |_: &PieceRef| true,
-    };
-    odd_loop(g, cut, &region, usize::MAX).found
+    odd_loop(g, cut, &InBox::cubes(allowed.0, allowed.1), usize::MAX).found
 }
 
 /// Margins (voxels) of the boxes round a cut in which [`shortest_odd_loop_near`] looks first.
@@ -719,12 +710,10 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
             continue;
         };
         let (lo, hi) = grow(2 * margin);
-        let around = InBox {
-            lo,
-            hi,
-            filter: |_: &PieceRef| true,
-        };
-        if odd_loop(top, &lp, &around, usize::MAX).found.is_some() {
+        if odd_loop(top, &lp, &InBox::cubes(lo, hi), usize::MAX)
+            .found
+            .is_some()
+        {
             return Some(lp);
         }
     }
@@ -1397,11 +1386,7 @@ mod tests {
                     let cut = &h.located.cut;
                     let mut g = Graph::new(mini, cases(conn));
                     let near = shortest_odd_loop_near(&mut g, cut, allowed);
-                    let whole = InBox {
-                        lo: allowed.0,
-                        hi: allowed.1,
-                        filter: |_: &PieceRef| true,
-                    };
+                    let whole = InBox::cubes(allowed.0, allowed.1);
                     let whole = odd_loop(&mut g, cut, &whole, usize::MAX);
                     assert!(whole.exact);
                     let (a, b) = (near.map(|l| l.len()), whole.found.map(|l| l.len()));

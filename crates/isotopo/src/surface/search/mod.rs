@@ -450,6 +450,17 @@ pub struct InBox<F: Fn(&PieceRef) -> bool> {
     pub filter: F,
 }
 
+impl InBox<fn(&PieceRef) -> bool> {
+    /// Every piece of the cubes `lo ..= hi`.
+    pub fn cubes(lo: [i64; 3], hi: [i64; 3]) -> Self {
+        InBox {
+            lo,
+            hi,
+            filter: |_| true,
+        }
+    }
+}
+
 impl<F: Fn(&PieceRef) -> bool> InBox<F> {
     /// Is the cube with lower corner `q` in the box?
     pub fn holds_cube(&self, q: [i64; 3]) -> bool {
@@ -1127,12 +1138,20 @@ fn multi_source(
             })
             .collect()
     });
+    (Some(meeting_walk(g, cut, end, other)), conclusive, meets)
+}
+
+/// The closed walk of [`multi_source`] through the meeting states `end` and `other` (the two
+/// states of one vertex), and its start: from `end`'s source to the meeting vertex, back to
+/// `other`'s source, then along the cut, the shorter way, to the start (nothing when the two
+/// sources are one).
+fn meeting_walk(g: &Graph, cut: &[Vertex], end: u32, other: u32) -> (Vec<Vertex>, Vertex) {
+    let n = cut.len();
+    let sc = &g.scratch;
     let (a, b) = (
         sc.source[end as usize] as usize,
         sc.source[other as usize] as usize,
     );
-    // From source a to the meeting vertex, back to source b, then along the cut from b to a
-    // (excluding both; nothing when a = b).
     let mut walk = states_to(g, end, 1);
     let mut back = states_to(g, other, 1);
     back.pop(); // the meeting vertex
@@ -1142,17 +1161,24 @@ fn multi_source(
         walk.pop();
     } else {
         let forward = (a + n - b) % n; // steps from b forward to a
-        let step: isize = if forward <= n - forward { 1 } else { -1 };
-        let mut i = b as isize;
-        loop {
-            i = (i + step).rem_euclid(n as isize);
-            if i as usize == a {
-                break;
-            }
-            walk.push(cut[i as usize]);
-        }
+        let step = if forward <= n - forward { 1 } else { -1 };
+        push_along_cut(&mut walk, cut, b, a, step);
     }
-    (Some((walk, cut[a])), conclusive, meets)
+    (walk, cut[a])
+}
+
+/// Closes a walk along `cut`: the cut's vertices strictly between positions `from` and `to`,
+/// stepping `step` (1 or -1) from `from`.
+fn push_along_cut(walk: &mut Vec<Vertex>, cut: &[Vertex], from: usize, to: usize, step: isize) {
+    let n = cut.len() as isize;
+    let mut i = from as isize;
+    loop {
+        i = (i + step).rem_euclid(n);
+        if i as usize == to {
+            break;
+        }
+        walk.push(cut[i as usize]);
+    }
 }
 
 /// The shortest path within the region from `from` to a vertex `is_target` accepts (`from`

@@ -378,19 +378,12 @@ fn first_search(
     let src = s.g.scratch.mm.source[end as usize] as usize;
     let mut walk = s.path_to(end);
     // Back along the cut from j to the source, the shorter way (both excluded).
-    let step: isize = if forward(j, src) <= forward(src, j) {
+    let step = if forward(j, src) <= forward(src, j) {
         1
     } else {
         -1
     };
-    let mut i = j as isize;
-    loop {
-        i = (i + step).rem_euclid(n as isize);
-        if i as usize == src {
-            break;
-        }
-        walk.push(cut[i as usize]);
-    }
+    super::push_along_cut(&mut walk, cut, j, src, step);
     // Lower bounds through each edge with both ends' states settled.
     let bounds = conclusive.then(|| {
         let mut b = Vec::new();
