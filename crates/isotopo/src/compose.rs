@@ -398,8 +398,12 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
     let lo: [i64; 3] = std::array::from_fn(|c| p[c].min(t[c]) - MAX_SPECK as i64 - 1);
     let hi: [i64; 3] = std::array::from_fn(|c| p[c].max(t[c]) + MAX_SPECK as i64 + 1);
     let other = |q: [i64; 3]| speck.contains(&q) || state(vol, q) != side;
-    let mut seen: FastMap<[i64; 3], ()> = FastMap::default();
-    seen.insert(t, ());
+    // The samples reached, one flag per sample of the box (a few thousand): this test runs for
+    // every place a speck might go, and a hash set of positions was most of its time.
+    let size: [i64; 3] = std::array::from_fn(|c| hi[c] - lo[c] + 1);
+    let at = |q: [i64; 3]| ((q[2] - lo[2]) * size[1] + q[1] - lo[1]) * size[0] + q[0] - lo[0];
+    let mut seen = vec![false; (size[0] * size[1] * size[2]) as usize];
+    seen[at(t) as usize] = true;
     let mut stack = vec![t];
     while let Some(q) = stack.pop() {
         if q == p {
@@ -410,8 +414,8 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
                 for dx in -1..=1 {
                     let n = [q[0] + dx, q[1] + dy, q[2] + dz];
                     let inside_box = (0..3).all(|c| n[c] >= lo[c] && n[c] <= hi[c]);
-                    if inside_box && !seen.contains_key(&n) && other(n) {
-                        seen.insert(n, ());
+                    if inside_box && !seen[at(n) as usize] && other(n) {
+                        seen[at(n) as usize] = true;
                         stack.push(n);
                     }
                 }
