@@ -404,8 +404,10 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
     let at = |q: [i64; 3]| ((q[2] - lo[2]) * size[1] + q[1] - lo[1]) * size[0] + q[0] - lo[0];
     let mut seen = vec![false; (size[0] * size[1] * size[2]) as usize];
     seen[at(t) as usize] = true;
-    let mut stack = vec![t];
-    while let Some(q) = stack.pop() {
+    // Breadth first: when the two places are in one piece (the answer looked for), the search
+    // reaches `p` within a ball round `t` instead of wandering through the box first.
+    let mut queue = std::collections::VecDeque::from([t]);
+    while let Some(q) = queue.pop_front() {
         if q == p {
             return true;
         }
@@ -416,7 +418,7 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
                     let inside_box = (0..3).all(|c| n[c] >= lo[c] && n[c] <= hi[c]);
                     if inside_box && !seen[at(n) as usize] && other(n) {
                         seen[at(n) as usize] = true;
-                        stack.push(n);
+                        queue.push_back(n);
                     }
                 }
             }
