@@ -811,17 +811,7 @@ fn find(
         };
     };
     // Q1 found beyond the limit is not the shortest: only what crosses it matters.
-    let second = if cheap_second(top_level, limits) {
-        match any_odd_loop(top, &q1, &Everywhere) {
-            Some(q2) => OddLoop {
-                found: Some(q2),
-                exact: false,
-            },
-            None => searcher.odd_loop(top, &q1, limits.below),
-        }
-    } else {
-        searcher.odd_loop(top, &q1, limits.below)
-    };
+    let second = second_loop(top, searcher, &q1, top_level, limits);
     let refine = limits.below.is_infinite() && exact;
     exact &= second.exact;
     let basis = Some((p.clone(), q1.clone()));
@@ -860,14 +850,28 @@ fn find(
     }
 }
 
-/// Whether an intra-ribbon handle's `Q2` may be any loop crossing `Q1` once rather than the
-/// shortest: when every handle goes whatever its size (no limit) and only the smaller loop
-/// matters, the pair is refined from it anyway. In a ribbon of many handles `P` goes round all
-/// of them, `Q1` is long, and the shortest loop crossing it costs a search that deep from every
-/// vertex of `Q1` (MNI `--spherical`: a 148-node ribbon's 73 handles, up to 0.4 s each), while
-/// the refinement finds the small pair from any loop crossing `Q1`.
-fn cheap_second(top_level: bool, limits: Limits) -> bool {
-    !top_level && limits.size_only && limits.below.is_infinite()
+/// `Q2` of [`find`]: the shortest loop crossing `q1` below the limit. For an intra-ribbon
+/// handle with no limit when only the smaller loop matters (every handle goes whatever its
+/// size), any loop crossing `q1` (not exact): the pair is refined from it anyway. In a ribbon of
+/// many handles `P` goes round all of them, `Q1` is long, and the shortest loop crossing it
+/// costs a search that deep from every vertex of `Q1` (MNI `--spherical`: a 148-node ribbon's
+/// 73 handles, up to 0.4 s each), while the refinement finds the small pair from any loop.
+fn second_loop(
+    top: &mut Graph,
+    searcher: &Searcher,
+    q1: &[Vertex],
+    top_level: bool,
+    limits: Limits,
+) -> OddLoop {
+    if !top_level && limits.size_only && limits.below.is_infinite() {
+        if let Some(q2) = any_odd_loop(top, q1, &Everywhere) {
+            return OddLoop {
+                found: Some(q2),
+                exact: false,
+            };
+        }
+    }
+    searcher.odd_loop(top, q1, limits.below)
 }
 
 /// When only the smaller loop matters (the handle's size): some loop crossing `p` once, found
