@@ -35,6 +35,8 @@ resident memory from /usr/bin/time -v; CPU = user + system seconds, isotopo is m
   2. Stages            wall s / peak MiB of genus, handles (the sweep), analyze (sweep + both loops
                        of every handle) and simplify; handles found by `handles` and how many of
                        them are intra-ribbon; where simplify's time went (report seconds_stages).
+  2b. Every handle     simplify --tau inf (wall s, MiB, samples changed, ms per removed handle
+      removed          beyond the genus pass) and --spherical (the same, and b0/b1/b2 after).
   3. Reference tools   VTK FE s and triangles; skimage s and its b1; genus/FE = isotopo genus wall
                        time / VTK FE time (< 1: the whole isotopo run, reading included, beats VTK's
                        extraction alone); skimage/genus = skimage time / isotopo genus time.
@@ -144,7 +146,8 @@ def isotopo_stage(*args, repeat=1):
 def simplify(src, iso, tau, out, report, *extra, check=True):
     """`isotopo simplify` once: dict of wall s, CPU s, peak MiB and the report (None if it failed
     with check=False, then "stderr" holds why)."""
-    dt, rss, p = timed([isotopo_bin(), "simplify", src, "--iso", iso, "--tau", tau, "-o", out, "--report", report, "-q", *extra], check=check)
+    tau_args = ["--tau", tau] if tau is not None else []  # None: --spherical, which implies tau inf
+    dt, rss, p = timed([isotopo_bin(), "simplify", src, "--iso", iso, *tau_args, "-o", out, "--report", report, "-q", *extra], check=check)
     res = {"seconds": dt, "cpu_seconds": cpu_seconds(p), "peak_mib": rss, "returncode": p.returncode, "output": str(out)}
     if p.returncode != 0:
         res["stderr"] = p.stderr.split("\tCommand being timed:")[0].strip()
@@ -197,6 +200,15 @@ def bench_volume(name, tau, repeat, work, notes):
     # The written volume, measured again (untimed): its genus must be the report's genus_after.
     oj = isotopo_stage("genus", out, "--iso", iso, "--json", "-q")["json"]
     row["simplify"]["output_betti"] = [oj["b0"], oj["b1"], oj["b2"]]
+
+    # Every handle removed: where a search change shows most (walls decide which handles the
+    # sweep meets next), and issue 17's comparison with TopoSimplifier (--spherical).
+    for key, tau_x, extra in (("tau_inf", "inf", ()), ("spherical", None, ("--spherical",))):
+        print(f", {key}", end="", flush=True)
+        s2 = simplify(conv, iso, tau_x, work / f"{key}-{conv.name}", work / f"{conv.stem}-{key}.json", *extra)
+        r2 = s2.pop("report")
+        row[key] = {**s2, "removed": r2["genus_before"] - r2["genus_after"], "samples_changed": r2["samples_changed"],
+                    "after": [r2.get("b0_after"), r2["genus_after"], r2.get("b2_after")]}
 
     values = None
     if have("vtk") or have("skimage"):
@@ -378,6 +390,17 @@ def print_tables(rows, big, tau, notes):
                     f(r["handles"]["seconds"], ".2f"), f(r["handles"]["peak_mib"], ".0f"), r["handles"]["count"], r["handles"]["intra_ribbon"],
                     f(r["analyze"]["seconds"], ".2f"), f(r["analyze"]["peak_mib"], ".0f"), f(r["simplify"]["seconds"], ".1f"),
                     f(r["simplify"]["peak_mib"], ".0f"), f(st.get("sweep"), ".1f"), f(st.get("loops"), ".1f"), f(st.get("closures"), ".1f")])
+    print(table(hdr, out))
+
+    print("\n2b. Every handle removed (one run each): simplify --tau inf, and --spherical (one component, no handle,")
+    print("    no cavity); ms/handle = (simplify s - genus s) / handles removed\n")
+    hdr = ["volume", "genus", "inf s", "MiB", "samples", "ms/handle", "spherical s", "MiB", "samples", "after (b0, b1, b2)"]
+    out = []
+    for r in rows:
+        ti, sp = r["tau_inf"], r["spherical"]
+        per = (ti["seconds"] - r["genus"]["seconds"]) * 1000 / ti["removed"] if ti["removed"] else None
+        out.append([r["name"], r["genus"]["b1"], f(ti["seconds"], ".1f"), f(ti["peak_mib"], ".0f"), f"{ti['samples_changed']:,}", f(per, ".1f"),
+                    f(sp["seconds"], ".1f"), f(sp["peak_mib"], ".0f"), f"{sp['samples_changed']:,}", tuple(sp["after"])])
     print(table(hdr, out))
 
     print("\n3. Reference tools (in process, volume already in memory)\n")
