@@ -34,7 +34,7 @@
 
 use crate::error::Result;
 use crate::grid::simple::{same_piece, topological_numbers};
-use crate::grid::MaskVolume;
+use crate::grid::{BoxCells, MaskVolume};
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
@@ -400,10 +400,11 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
     let other = |q: [i64; 3]| speck.contains(&q) || state(vol, q) != side;
     // The samples reached, one flag per sample of the box (a few thousand): this test runs for
     // every place a speck might go, and a hash set of positions was most of its time.
-    let size: [i64; 3] = std::array::from_fn(|c| hi[c] - lo[c] + 1);
-    let at = |q: [i64; 3]| ((q[2] - lo[2]) * size[1] + q[1] - lo[1]) * size[0] + q[0] - lo[0];
-    let mut seen = vec![false; (size[0] * size[1] * size[2]) as usize];
-    seen[at(t) as usize] = true;
+    let cells = BoxCells::new(lo, hi);
+    let mut seen = vec![false; cells.len()];
+    if let Some(c) = cells.index(t) {
+        seen[c] = true;
+    }
     // Breadth first: when the two places are in one piece (the answer looked for), the search
     // reaches `p` within a ball round `t` instead of wandering through the box first.
     let mut queue = std::collections::VecDeque::from([t]);
@@ -415,9 +416,9 @@ fn same_region(vol: &MaskVolume, speck: &[[i64; 3]], t: [i64; 3], side: bool) ->
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let n = [q[0] + dx, q[1] + dy, q[2] + dz];
-                    let inside_box = (0..3).all(|c| n[c] >= lo[c] && n[c] <= hi[c]);
-                    if inside_box && !seen[at(n) as usize] && other(n) {
-                        seen[at(n) as usize] = true;
+                    let Some(c) = cells.index(n) else { continue };
+                    if !seen[c] && other(n) {
+                        seen[c] = true;
                         queue.push_back(n);
                     }
                 }

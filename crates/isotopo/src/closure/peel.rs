@@ -25,7 +25,7 @@
 
 use super::Operation;
 use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers, FACES};
-use crate::grid::MaskVolume;
+use crate::grid::{BoxCells, MaskVolume};
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 
@@ -134,7 +134,7 @@ struct Ring<'a> {
     target: &'a PeelTarget<'a>,
     side: bool,
     six: bool,
-    size: [usize; 3],
+    cells: BoxCells,
     /// Per box cell: generation it was reached in, and the cell it was reached from.
     stamp: Vec<u32>,
     from: Vec<u32>,
@@ -143,14 +143,12 @@ struct Ring<'a> {
 
 impl<'a> Ring<'a> {
     fn new(target: &'a PeelTarget<'a>, side: bool, conn: Connectivity) -> Ring<'a> {
-        let size: [usize; 3] =
-            std::array::from_fn(|k| (target.hi[k] - target.lo[k] + 1).max(0) as usize);
         Ring {
             target,
             side,
             // Inside samples are 6-adjacent with connectivity 6, outside ones with 26.
             six: side == (conn == Connectivity::Six),
-            size,
+            cells: BoxCells::new(target.lo, target.hi),
             stamp: Vec::new(),
             from: Vec::new(),
             generation: 0,
@@ -158,30 +156,18 @@ impl<'a> Ring<'a> {
     }
 
     fn cell(&self, q: [i64; 3]) -> Option<usize> {
-        let r: [i64; 3] = std::array::from_fn(|k| q[k] - self.target.lo[k]);
-        (0..3)
-            .all(|k| r[k] >= 0 && (r[k] as usize) < self.size[k])
-            .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
+        self.cells.index(q)
     }
 
     fn sample(&self, c: usize) -> [i64; 3] {
-        let (x, y, z) = (
-            c % self.size[0],
-            c / self.size[0] % self.size[1],
-            c / (self.size[0] * self.size[1]),
-        );
-        [
-            self.target.lo[0] + x as i64,
-            self.target.lo[1] + y as i64,
-            self.target.lo[2] + z as i64,
-        ]
+        self.cells.sample(c)
     }
 
     /// Does flipping `q` cut a ring of the side that the loop goes round (see the type)?
     /// Searched from both pieces at once, the smaller front first: a piece closed off within
     /// the box (the flip would split the side) is done with at the cost of that piece.
     fn cuts(&mut self, vol: &MaskVolume, q: [i64; 3]) -> bool {
-        let cells = self.size.iter().product::<usize>();
+        let cells = self.cells.len();
         let Some(qc) = self.cell(q) else {
             return false;
         };

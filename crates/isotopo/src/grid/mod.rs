@@ -9,3 +9,45 @@ pub(crate) mod simple;
 
 pub use fractions::EdgeFractions;
 pub use planes::{window_for, Axis, Frame, MaskVolume, DEFAULT_WINDOW_BYTES, MIN_WINDOW};
+
+/// The samples of a small box `lo ..= hi`, numbered x fastest, for searches that keep a flag or
+/// a mark per sample of the box (an array, not a hash set of positions).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BoxCells {
+    lo: [i64; 3],
+    size: [usize; 3],
+}
+
+impl BoxCells {
+    pub(crate) fn new(lo: [i64; 3], hi: [i64; 3]) -> BoxCells {
+        let size = std::array::from_fn(|k| (hi[k] - lo[k] + 1).max(0) as usize);
+        BoxCells { lo, size }
+    }
+
+    /// How many samples the box holds.
+    pub(crate) fn len(&self) -> usize {
+        self.size.iter().product()
+    }
+
+    /// The number of sample `q`, `None` outside the box.
+    pub(crate) fn index(&self, q: [i64; 3]) -> Option<usize> {
+        let r: [i64; 3] = std::array::from_fn(|k| q[k] - self.lo[k]);
+        (0..3)
+            .all(|k| r[k] >= 0 && (r[k] as usize) < self.size[k])
+            .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
+    }
+
+    /// The sample numbered `c`.
+    pub(crate) fn sample(&self, c: usize) -> [i64; 3] {
+        let (x, y, z) = (
+            c % self.size[0],
+            c / self.size[0] % self.size[1],
+            c / (self.size[0] * self.size[1]),
+        );
+        [
+            self.lo[0] + x as i64,
+            self.lo[1] + y as i64,
+            self.lo[2] + z as i64,
+        ]
+    }
+}
