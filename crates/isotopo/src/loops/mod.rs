@@ -812,6 +812,7 @@ fn find(
     };
     // Q1 found beyond the limit is not the shortest: only what crosses it matters.
     let second = second_loop(top, searcher, &q1, top_level, limits);
+    // Taken before Q2's exactness: a cheap Q2 (see `second_loop`) is refined from too.
     let refine = limits.below.is_infinite() && exact;
     exact &= second.exact;
     let basis = Some((p.clone(), q1.clone()));
