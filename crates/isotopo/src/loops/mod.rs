@@ -157,6 +157,13 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// Every handle goes whatever its size, and only the smaller loop matters (simplify at tau
+    /// inf without `--max-ratio`): the searches that only choose where a closure goes may be
+    /// cheaper than exact.
+    pub fn every_handle_goes(&self) -> bool {
+        self.size_only && self.below.is_infinite()
+    }
+
     /// No limit, shortest in edges, both loops exact.
     pub const NONE: Limits = Limits {
         below: f64::INFINITY,
@@ -885,7 +892,7 @@ fn find(
 fn refined_within(h: &Handle, limits: Limits) -> InBox<fn(&PieceRef) -> bool> {
     let all = [i64::MAX / 4; 3];
     match h.located.ribbon {
-        Some((s, _)) if limits.size_only && limits.below.is_infinite() => {
+        Some((s, _)) if limits.every_handle_goes() => {
             InBox::cubes(all.map(|x| -x), [all[0], all[1], s])
         }
         _ => InBox::cubes(all.map(|x| -x), all),
@@ -909,15 +916,14 @@ fn first_loop(
     top_level: bool,
     limits: Limits,
 ) -> (OddLoop, bool) {
-    let reuse = !top_level && limits.size_only && limits.below.is_infinite();
+    let reuse = !top_level && limits.every_handle_goes();
     if !reuse {
         return (searcher.odd_loop(top, p, limits.below), false);
     }
-    if let Some((kept_p, q1)) = cache.ribbon_start.take() {
-        if kept_p == p && crossing_parity(top, &q1, p) == Some(1) {
-            cache.ribbon_start = Some((kept_p, q1.clone()));
+    if let Some((kept_p, q1)) = &cache.ribbon_start {
+        if kept_p == p && crossing_parity(top, q1, p) == Some(1) {
             let first = OddLoop {
-                found: Some(q1),
+                found: Some(q1.clone()),
                 exact: false,
             };
             return (first, true);
@@ -945,7 +951,7 @@ fn second_loop(
     limits: Limits,
     swept: &dyn Region,
 ) -> OddLoop {
-    if !top_level && limits.size_only && limits.below.is_infinite() {
+    if !top_level && limits.every_handle_goes() {
         let q2 = any_odd_loop(top, q1, swept).or_else(|| any_odd_loop(top, q1, &Everywhere));
         if let Some(q2) = q2 {
             return OddLoop {
@@ -1512,11 +1518,6 @@ mod tests {
         );
     }
 
-    /// With no limit and only the size wanted (simplify at tau inf), an intra-ribbon handle's
-    /// pair is refined from any loop crossing its cross loop, not the shortest. The refinement
-    /// still ends with one of the two loops the shortest crossing the other: no loop crossing
-    /// the Reeb loop is shorter than the cross loop, or none crossing the cross loop is shorter
-    /// than the Reeb loop (and something crossing each is no longer than the other).
     /// The `Q1` kept for the next intra-ribbon handle with the same `P` (see `first_loop`) is
     /// taken again only while it still crosses `P` once: measured again on the same volume the
     /// handle gets the same loops, and on a volume where the kept `Q1` was broken (its samples
@@ -1587,9 +1588,12 @@ mod tests {
         assert!(kept > 20 && broken > 20, "{kept} kept, {broken} broken");
     }
 
-    /// With no limit when only the size matters, an intra-ribbon handle's pair, refined from
-    /// any loop, crosses once, ends locally shortest within the swept part of the surface, and
-    /// its Reeb loop lies there (it does not drift onto a handle above the sweep).
+    /// With no limit and only the size wanted (simplify at tau inf), an intra-ribbon handle's
+    /// pair is refined from any loop crossing its cross loop, not the shortest. The two loops
+    /// cross once, the refinement ends with one of them the shortest crossing the other within
+    /// the swept part of the surface (no loop there crossing the Reeb loop is shorter than the
+    /// cross loop, or none crossing the cross loop is shorter than the Reeb loop), and the Reeb
+    /// loop lies there (it does not drift onto a handle above the sweep).
     #[test]
     fn an_intra_ribbon_pair_refined_from_any_loop_ends_locally_shortest() {
         let limits = Limits {
