@@ -21,10 +21,17 @@
 //!   ball) moved up to [`MAX_STEPS`] unit steps, each step simple flips, or put down whole
 //!   elsewhere within that reach ([`TELEPORT_REACH`] for a single sample) where nothing of its
 //!   side touches it and the same piece of the other side surrounds it (its surface, a sphere,
-//!   stays in the same region);
+//!   stays in the same region); where no such place lowers the count (a grain in a small
+//!   bubble, a cloud of grains), the samples of its side that touch it diagonally let go by
+//!   simple flips, round the best few places or where it is (`Mender::clear_room`);
 //! - a detour of three simple flips (two beside the cell, then the corner);
+//! - a *dent* of the other side at a corner of a cube, joined to the rest of its side only
+//!   across the cube's diagonal, filled in by simple flips (`Mender::fill_dent`);
 //! - a handle moved off a face whose two corners are joined elsewhere (see
-//!   `Mender::swap_handle`): one flip adds the handle through the face, one cuts the path.
+//!   `Mender::swap_handle`): one flip adds the handle through the face, one cuts the path. The
+//!   path is looked for near the face, then up to [`FAR_SWAP_REACH`] away: a thread of one
+//!   sample that passes itself diagonally closes its loop far from there (the MNI map's last
+//!   two critical faces).
 //!
 //! Every change keeps the components, handles and cavities of the chosen connectivity and
 //! lowers the number of critical cells of the volume, so the step ends; cells no such change
@@ -57,7 +64,7 @@ pub struct Composition {
     pub flips: Vec<([i64; 3], bool)>,
     /// Changes that took two or three flips (a sample stepping aside first, or a detour).
     pub pairs: u64,
-    /// Specks moved aside whole (see [`MAX_SPECK`]).
+    /// Specks moved aside whole (see [`MAX_SPECK`]) or cleared round, dents filled.
     pub moves: u64,
     /// Handles moved off a critical face (see `Mender::swap_handle`).
     pub swaps: u64,
@@ -161,6 +168,9 @@ impl Mender {
             } else if let Some(three) = self.best_triple(vol, cell) {
                 self.pairs += 1;
                 three
+            } else if let Some(fill) = self.fill_dent(vol, cell) {
+                self.moves += 1;
+                fill
             } else if let Some(swap) = self.swap_handle(vol, cell) {
                 self.swaps += 1;
                 swap
@@ -242,6 +252,9 @@ pub const MAX_SPECK: usize = 4;
 /// others may find room only a few samples away).
 pub const TELEPORT_REACH: i64 = 7;
 
+/// How many places a speck is tried at with a room cleared round it (the best places first).
+const ROOMS_TRIED: usize = 8;
+
 /// Farthest a speck is moved, in unit steps along the axes.
 pub const MAX_STEPS: usize = 3;
 
@@ -282,8 +295,11 @@ impl Mender {
                     return Some(flips);
                 }
             }
-            if let Some(to) = self.teleport(vol, &speck, side) {
-                return Some(speck.iter().copied().chain(to).collect());
+            if let Some(moved) = self.teleport(vol, &speck, side) {
+                return Some(moved);
+            }
+            if let Some(room) = self.clear_room(vol, &speck, side) {
+                return Some(room);
             }
         }
         None
@@ -306,7 +322,7 @@ impl Mender {
         } else {
             MAX_STEPS as i64
         };
-        let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
+        let mut places: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
         for dz in -r..=r {
             for dy in -r..=r {
                 for dx in -r..=r {
@@ -314,22 +330,45 @@ impl Mender {
                         .iter()
                         .map(|q| [q[0] + dx, q[1] + dy, q[2] + dz])
                         .collect();
-                    if !self.free_for(vol, speck, &to, side) {
-                        continue;
-                    }
-                    let flips: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
-                    let d = change(vol, &flips);
-                    // The region search last: it is the costly test.
-                    if d < 0
-                        && best.as_ref().is_none_or(|(_, b)| d < *b)
-                        && same_region(vol, speck, to[0], side)
-                    {
-                        best = Some((to, d));
+                    if self.free_for(vol, speck, &to, side) {
+                        let flips: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
+                        places.push((change(vol, &flips), to));
                     }
                 }
             }
         }
-        best.map(|(to, _)| to)
+        // Stable: among places as good, the first met.
+        places.sort_by_key(|(d, _)| *d);
+        // The region search last: it is the costly test.
+        let mut tried = 0;
+        for (d, to) in places {
+            if d >= 0 && tried == ROOMS_TRIED {
+                break;
+            }
+            if !same_region(vol, speck, to[0], side) {
+                continue;
+            }
+            let moved: Vec<[i64; 3]> = speck.iter().chain(&to).copied().collect();
+            if d < 0 {
+                return Some(moved);
+            }
+            // No place lowers the critical cells alone: clear a room round the best few.
+            tried += 1;
+            for &q in &moved {
+                toggle(vol, q);
+            }
+            let room = self.clear_room(vol, &to, side);
+            for &q in moved.iter().rev() {
+                toggle(vol, q);
+            }
+            if let Some(room) = room {
+                let all: Vec<[i64; 3]> = moved.into_iter().chain(room).collect();
+                if change(vol, &all) < 0 {
+                    return Some(all);
+                }
+            }
+        }
+        None
     }
 
     /// Whether the speck can be put at `to`: inside the volume, apart from where it is (not
@@ -349,6 +388,104 @@ impl Mender {
                         to.contains(&q) || state(vol, q) != side
                     })
             })
+    }
+
+    /// A speck with nowhere to go (a grain in a small bubble): the samples of its side that
+    /// touch it at an edge or a corner let go instead, each a simple flip in turn (the one
+    /// that lowers the critical cells most first), until the speck is alone in the middle of
+    /// its 3 × 3 × 3 neighbourhood; when that lowers the critical cells, returns the flips.
+    ///
+    /// ```text
+    ///   # # # #      # . . #
+    ///   # . # #      # . . #      (the bubble round the grain s grows by simple flips of
+    ///   # s . #  ->  # s . #       its wall, until nothing of s's side touches s)
+    ///   # # . #      # . . #
+    /// ```
+    fn clear_room(
+        &self,
+        vol: &mut MaskVolume,
+        speck: &[[i64; 3]],
+        side: bool,
+    ) -> Option<Vec<[i64; 3]>> {
+        let mut around: Vec<[i64; 3]> = speck
+            .iter()
+            .flat_map(|q| {
+                (0..27).map(move |k| [q[0] + k % 3 - 1, q[1] + k / 3 % 3 - 1, q[2] + k / 9 - 1])
+            })
+            .filter(|q| !speck.contains(q))
+            .collect();
+        around.sort_unstable();
+        around.dedup();
+        self.flip_all(vol, &around, side)
+    }
+
+    /// Flips every sample of `samples` now on `side`, each a simple flip in turn (the one that
+    /// lowers the critical cells most first); the flips, when all could be made and together
+    /// they lower the critical cells (the volume is left as it was).
+    fn flip_all(
+        &self,
+        vol: &mut MaskVolume,
+        samples: &[[i64; 3]],
+        side: bool,
+    ) -> Option<Vec<[i64; 3]>> {
+        let mut flips: Vec<[i64; 3]> = Vec::new();
+        let all = loop {
+            let mut best: Option<(i64, [i64; 3])> = None;
+            let mut left = false;
+            for &q in samples {
+                if state(vol, q) != side {
+                    continue;
+                }
+                left = true;
+                if within(vol, q) && self.simple(vol, q) {
+                    let d = (change(vol, &[q]), q);
+                    best = Some(best.map_or(d, |b| b.min(d)));
+                }
+            }
+            if !left {
+                break true;
+            }
+            let Some((_, q)) = best else { break false };
+            toggle(vol, q);
+            flips.push(q);
+        };
+        for &q in flips.iter().rev() {
+            toggle(vol, q);
+        }
+        (all && !flips.is_empty() && change(vol, &flips) < 0).then_some(flips)
+    }
+
+    /// A cube whose only two samples of the side that is not 6-connected are opposite corners
+    /// (joined by the chosen connectivity, apart under the other): a small piece of that side
+    /// (6-adjacent samples, at most [`MAX_SPECK`] + 4) at one corner, a dent joined to the rest
+    /// of its side only across the cube, is filled in, each flip simple in turn.
+    ///
+    /// ```text
+    ///   # # #        # # #
+    ///   # . #   ->   # # #        (the dent at the corner of the cube, joined to the rest of
+    ///   # # .        # # .         its side only through the cube's diagonal, filled in)
+    /// ```
+    fn fill_dent(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        let side = !self.six_side();
+        if cell.0 != CellKind::Cube {
+            return None;
+        }
+        let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
+        for p in corners(vol, cell) {
+            if state(vol, p) != side {
+                continue;
+            }
+            let Some(dent) = small_piece(vol, p, side, MAX_SPECK + 4) else {
+                continue;
+            };
+            if let Some(flips) = self.flip_all(vol, &dent, side) {
+                let d = change(vol, &flips);
+                if best.as_ref().is_none_or(|(_, b)| d < *b) {
+                    best = Some((flips, d));
+                }
+            }
+        }
+        best.map(|(flips, _)| flips)
     }
 
     /// The flips moving `speck` along `path`, if each is simple in turn and the move lowers the
@@ -541,6 +678,8 @@ impl Mender {
 
 /// How far from a critical face the path joining its two corners is looked for.
 const SWAP_REACH: i64 = 6;
+/// How far it is looked for when it is not found near (a box of 81³ samples).
+pub const FAR_SWAP_REACH: i64 = 40;
 
 impl Mender {
     /// A face whose two corners of the 6-connected side are joined elsewhere by a path of that
@@ -566,7 +705,11 @@ impl Mender {
         if joined.len() != 2 || others.len() != 2 {
             return None;
         }
-        let path = side_path(vol, joined[0], joined[1], side, cell.1)?;
+        // Near first (most such faces are mended so, and the search is cheap), then far: a
+        // thread of one sample that passes itself diagonally closes its loop far away.
+        let path = [SWAP_REACH, FAR_SWAP_REACH]
+            .into_iter()
+            .find_map(|r| side_path(vol, joined[0], joined[1], side, cell.1, r))?;
         let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
         for &b in &others {
             // b's two pieces must be a's and d's (joined elsewhere by the path): then b makes a
@@ -611,38 +754,39 @@ impl Mender {
     }
 }
 
-/// A shortest path of 6-adjacent samples of `side` from `a` to `d` within [`SWAP_REACH`] of
-/// `near`, both ends included.
+/// A shortest path of 6-adjacent samples of `side` from `a` to `d` within `reach` of `near`
+/// along each axis, both ends included.
 fn side_path(
     vol: &MaskVolume,
     a: [i64; 3],
     d: [i64; 3],
     side: bool,
     near: [i64; 3],
+    reach: i64,
 ) -> Option<Vec<[i64; 3]>> {
-    let mut from: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
-    from.insert(a, a);
+    let cells = BoxCells::new(near.map(|c| c - reach), near.map(|c| c + reach));
+    // Each sample reached, by the step it was reached from (one byte per sample of the box:
+    // the far reach is a box of a few hundred thousand samples).
+    let mut from = vec![u8::MAX; cells.len()];
+    from[cells.index(a)?] = 6;
     let mut queue = std::collections::VecDeque::from([a]);
     while let Some(q) = queue.pop_front() {
         if q == d {
             let mut path = vec![d];
             let mut at = d;
             while at != a {
-                at = from[&at];
+                let e = STEPS[from[cells.index(at)?] as usize];
+                at = [at[0] - e[0], at[1] - e[1], at[2] - e[2]];
                 path.push(at);
             }
             path.reverse();
             return Some(path);
         }
-        for e in STEPS {
+        for (k, e) in STEPS.iter().enumerate() {
             let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
-            let close = (0..3).all(|c| (r[c] - near[c]).abs() <= SWAP_REACH);
-            if close
-                && within(vol, r)
-                && vol.get(r[0], r[1], r[2]) == side
-                && !from.contains_key(&r)
-            {
-                from.insert(r, q);
+            let Some(c) = cells.index(r) else { continue };
+            if from[c] == u8::MAX && within(vol, r) && vol.get(r[0], r[1], r[2]) == side {
+                from[c] = k as u8;
                 queue.push_back(r);
             }
         }
@@ -751,4 +895,123 @@ fn cells_at(p: [i64; 3]) -> [Cell; 20] {
     }
     debug_assert_eq!(n, 20);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Frame;
+
+    fn mender() -> Mender {
+        Mender {
+            conn: Connectivity::Six,
+            only: None,
+            original: FastMap::default(),
+            pairs: 0,
+            moves: 0,
+            swaps: 0,
+        }
+    }
+
+    fn betti(vol: &MaskVolume) -> (u64, u64, u64) {
+        let g = vol.genus(Connectivity::Six).unwrap();
+        (g.b0, g.b1, g.b2)
+    }
+
+    /// Sets the samples of the axis-aligned segments between successive points.
+    fn thread(vol: &mut MaskVolume, points: &[[i64; 3]]) {
+        for w in points.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let n = (0..3).map(|c| (b[c] - a[c]).abs()).sum::<i64>();
+            for k in 0..=n {
+                let p: [i64; 3] = std::array::from_fn(|c| a[c] + (b[c] - a[c]).signum() * k);
+                set(vol, p, true);
+            }
+        }
+    }
+
+    /// Two threads from a block, each a handle with it, pass each other diagonally at a face
+    /// of the plane y = 10 (A = (20, 10, 4), B = (21, 10, 5)); they are joined only through
+    /// the block, 15 samples away: the far search finds the path, and the swap keeps every
+    /// Betti number while the face stops being critical.
+    ///
+    /// ```text
+    ///   plane y = 10:   z = 5   . B -- (on to x = 30, round to the block)
+    ///                   z = 4   A .
+    ///                   z = 3   | .  (A's thread goes on down, then along y to the block)
+    ///                           x=20 21
+    /// ```
+    #[test]
+    fn a_thread_passing_itself_far_from_where_it_joins_is_swapped() {
+        let mut vol = MaskVolume::new([42, 40, 10], Frame::identity());
+        for z in 1..=8 {
+            for y in 1..=38 {
+                for x in 1..=5 {
+                    set(&mut vol, [x, y, z], true);
+                }
+            }
+        }
+        thread(
+            &mut vol,
+            &[
+                [6, 9, 4],
+                [20, 9, 4],
+                [20, 10, 4],
+                [20, 10, 3],
+                [20, 30, 3],
+                [6, 30, 3],
+            ],
+        );
+        thread(
+            &mut vol,
+            &[
+                [6, 35, 5],
+                [30, 35, 5],
+                [30, 10, 5],
+                [21, 10, 5],
+                [21, 25, 5],
+                [6, 25, 5],
+            ],
+        );
+        let cell = (CellKind::FaceY, [20, 10, 4]);
+        assert!(is_critical(&vol, cell));
+        let (a, b) = ([20, 10, 4], [21, 10, 5]);
+        assert!(side_path(&vol, a, b, true, cell.1, SWAP_REACH).is_none());
+        assert!(side_path(&vol, a, b, true, cell.1, FAR_SWAP_REACH).is_some());
+        let (before, critical) = (betti(&vol), count_volume(&vol).total());
+        let flips = mender().swap_handle(&mut vol, cell).expect("a swap");
+        for p in flips {
+            toggle(&mut vol, p);
+        }
+        assert!(!is_critical(&vol, cell));
+        assert_eq!(betti(&vol), before);
+        assert!(count_volume(&vol).total() < critical);
+    }
+
+    /// A dent of three outside samples in a block, joined to the outside only across the
+    /// diagonal of the cube at the end of a channel: it is filled (from its far end, each
+    /// flip simple in turn) and the cube stops being critical.
+    #[test]
+    fn a_dent_across_a_cube_is_filled() {
+        let mut vol = MaskVolume::new([16, 16, 16], Frame::identity());
+        for z in 2..13 {
+            for y in 2..13 {
+                for x in 2..13 {
+                    let channel = x == 6 && y == 6 && z <= 6;
+                    let dent = y == 7 && z == 7 && (7..10).contains(&x);
+                    set(&mut vol, [x, y, z], !channel && !dent);
+                }
+            }
+        }
+        let cell = (CellKind::Cube, [6, 6, 6]);
+        assert!(is_critical(&vol, cell));
+        let (before, critical) = (betti(&vol), count_volume(&vol).total());
+        let flips = mender().fill_dent(&mut vol, cell).expect("a fill");
+        assert_eq!(flips, [[9, 7, 7], [8, 7, 7], [7, 7, 7]]);
+        for p in flips {
+            toggle(&mut vol, p);
+        }
+        assert_eq!(betti(&vol), before);
+        assert_eq!(count_volume(&vol).total(), critical - 1);
+    }
 }

@@ -206,6 +206,29 @@ fn patterns() -> Vec<Case> {
             }),
             0.0,
         ),
+        // A grain in a bubble shaped like a plus: it touches the wall only along edges and at
+        // corners, and every other place in the bubble is beside it or beside the wall.
+        case(
+            "grain in a bubble",
+            shape(d, |x, y, z| {
+                let p = [x as i64 - 7, y as i64 - 7, z as i64 - 7];
+                let n = p.iter().filter(|&&c| c != 0).count();
+                let in_plus = n == 0 || (n == 1 && p.iter().all(|c| c.abs() <= 1));
+                in_cube([x, y, z], [3, 3, 3], 9) && (!in_plus || n == 0)
+            }),
+            0.0,
+        ),
+        // A dent of three samples inside a block, joined to the outside only across the
+        // diagonal of a cube at the end of a channel.
+        case(
+            "dent across a cube",
+            shape(d, |x, y, z| {
+                let channel = x == 6 && y == 6 && z <= 6;
+                let dent = y == 7 && z == 7 && (7..10).contains(&x);
+                in_cube([x, y, z], [2, 2, 2], 11) && !channel && !dent
+            }),
+            0.0,
+        ),
         // A ring of samples each touching the next along an edge, round a hole.
         case(
             "diagonal ring",
@@ -282,13 +305,13 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
         raw.0, raw.1, smooth.0, smooth.1
     );
     assert!(
-        raw.0 * 100 <= raw.1 * 6,
+        raw.0 * 100 <= raw.1 * 3,
         "raw noise: {} of {} critical cells left",
         raw.0,
         raw.1
     );
     assert!(
-        smooth.0 * 100 <= smooth.1 * 2,
+        smooth.0 * 100 <= smooth.1,
         "smoothed noise: {} of {} left",
         smooth.0,
         smooth.1
