@@ -407,27 +407,30 @@ impl Mender {
         speck: &[[i64; 3]],
         side: bool,
     ) -> Option<Vec<[i64; 3]>> {
+        let offsets = &crate::grid::simple::neighbourhood().offsets;
         let mut around: Vec<[i64; 3]> = speck
             .iter()
             .flat_map(|q| {
-                (0..27).map(move |k| [q[0] + k % 3 - 1, q[1] + k / 3 % 3 - 1, q[2] + k / 9 - 1])
+                offsets
+                    .iter()
+                    .map(|d| [q[0] + d[0], q[1] + d[1], q[2] + d[2]])
             })
             .filter(|q| !speck.contains(q))
             .collect();
         around.sort_unstable();
         around.dedup();
-        self.flip_all(vol, &around, side)
+        self.flip_all(vol, &around, side).map(|(flips, _)| flips)
     }
 
     /// Flips every sample of `samples` now on `side`, each a simple flip in turn (the one that
-    /// lowers the critical cells most first); the flips, when all could be made and together
-    /// they lower the critical cells (the volume is left as it was).
+    /// lowers the critical cells most first); the flips and the change in critical cells, when
+    /// all could be made and together they lower the count (the volume is left as it was).
     fn flip_all(
         &self,
         vol: &mut MaskVolume,
         samples: &[[i64; 3]],
         side: bool,
-    ) -> Option<Vec<[i64; 3]>> {
+    ) -> Option<(Vec<[i64; 3]>, i64)> {
         let mut flips: Vec<[i64; 3]> = Vec::new();
         let all = loop {
             let mut best: Option<(i64, [i64; 3])> = None;
@@ -452,7 +455,11 @@ impl Mender {
         for &q in flips.iter().rev() {
             toggle(vol, q);
         }
-        (all && !flips.is_empty() && change(vol, &flips) < 0).then_some(flips)
+        if !all || flips.is_empty() {
+            return None;
+        }
+        let d = change(vol, &flips);
+        (d < 0).then_some((flips, d))
     }
 
     /// A cube whose only two samples of the side that is not 6-connected are opposite corners
@@ -478,8 +485,7 @@ impl Mender {
             let Some(dent) = small_piece(vol, p, side, MAX_SPECK + 4) else {
                 continue;
             };
-            if let Some(flips) = self.flip_all(vol, &dent, side) {
-                let d = change(vol, &flips);
+            if let Some((flips, d)) = self.flip_all(vol, &dent, side) {
                 if best.as_ref().is_none_or(|(_, b)| d < *b) {
                     best = Some((flips, d));
                 }
@@ -768,7 +774,8 @@ fn side_path(
     // Each sample reached, by the step it was reached from (one byte per sample of the box:
     // the far reach is a box of a few hundred thousand samples).
     let mut from = vec![u8::MAX; cells.len()];
-    from[cells.index(a)?] = 6;
+    // Any value but MAX marks `a` reached; the walk back stops at `a` before reading it.
+    from[cells.index(a)?] = 0;
     let mut queue = std::collections::VecDeque::from([a]);
     while let Some(q) = queue.pop_front() {
         if q == d {
