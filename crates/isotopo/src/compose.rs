@@ -31,16 +31,20 @@
 //!   `Mender::swap_handle`): one flip adds the handle through the face, one cuts the path. The
 //!   path is looked for near the face, then up to [`FAR_SWAP_REACH`] away: a thread of one
 //!   sample that passes itself diagonally closes its loop far from there (the MNI map's last
-//!   two critical faces).
+//!   two critical faces);
+//! - last, two or three flips within one sample of the cell that are not simple one at a time
+//!   but keep the topology together, checked in a box round them (`Mender::best_rewrite`,
+//!   `grid::simple::SetTest`): a crack between two sheets that crosses a face diagonally goes round it.
 //!
-//! Every change keeps the components, handles and cavities of the chosen connectivity and
-//! lowers the number of critical cells of the volume, so the step ends; cells no such change
-//! mends are left and counted: specks packed among other pieces with nowhere to go, threads
-//! tangled with themselves. (A checkerboard of single samples has more separate pieces than a
+//! Every change keeps the components, handles and cavities of the chosen connectivity (a
+//! swap or a rewrite may move a handle, never add or remove one) and lowers the number of
+//! critical cells of the volume, so the step ends; cells no such change mends are left and
+//! counted: specks packed among other pieces with nowhere to go, threads tangled with
+//! themselves. (A checkerboard of single samples has more separate pieces than a
 //! well-composed set of its size can hold: no step can mend all of it.)
 
 use crate::error::Result;
-use crate::grid::simple::{same_piece, topological_numbers};
+use crate::grid::simple::{same_piece, topological_numbers, SetTest};
 use crate::grid::{BoxCells, MaskVolume};
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
@@ -62,7 +66,8 @@ pub struct Composition {
     /// The samples flipped, in volume-local coordinates, with the side each ends on (a sample
     /// flipped and flipped back is not listed).
     pub flips: Vec<([i64; 3], bool)>,
-    /// Changes that took two or three flips (a sample stepping aside first, or a detour).
+    /// Changes that took two or three flips (a sample stepping aside first, a detour, or a
+    /// rewrite).
     pub pairs: u64,
     /// Specks moved aside whole (see [`MAX_SPECK`]) or cleared round, dents filled.
     pub moves: u64,
@@ -174,6 +179,9 @@ impl Mender {
             } else if let Some(swap) = self.swap_handle(vol, cell) {
                 self.swaps += 1;
                 swap
+            } else if let Some(set) = self.best_rewrite(vol, cell) {
+                self.pairs += 1;
+                set
             } else {
                 continue;
             };
@@ -756,6 +764,78 @@ impl Mender {
             (inside, outside)
         } else {
             (outside, inside)
+        }
+    }
+}
+
+/// Most flips in a rewrite (see `Mender::best_rewrite`): three within one sample of a cell are
+/// a few thousand sets to try; four would be ten times as many.
+const REWRITE_FLIPS: usize = 3;
+
+impl Mender {
+    /// The last resort: two or three flips within one sample of `cell`, one of them a corner,
+    /// that need not be simple one at a time but together keep the topology
+    /// ([`SetTest`]); the fewest flips, then the lowest count. Two sheets one sample thick
+    /// that meet along an edge, with a crack of the other side between them, make faces whose
+    /// every corner punches or seals a sheet; a corner let go and a sample of the crack filled
+    /// beside it punch and seal at once.
+    ///
+    /// ```text
+    ///   . . # .        . . . .      a plane of the chest CT between two sheets: the crack (.)
+    ///   # . # #   ->   # # # #      crossed a face diagonally; one flip seals it there, one
+    ///   # # . #        # # . #      opens it beside, and it goes round
+    /// ```
+    fn best_rewrite(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        let corners = corners(vol, cell);
+        let near: Vec<[i64; 3]> = near(vol, cell)
+            .into_iter()
+            .filter(|p| {
+                self.only
+                    .is_none_or(|side| vol.get(p[0], p[1], p[2]) != side)
+            })
+            .collect();
+        let lo: [i64; 3] = std::array::from_fn(|c| near.iter().map(|p| p[c]).min().unwrap_or(0));
+        let hi: [i64; 3] = std::array::from_fn(|c| near.iter().map(|p| p[c]).max().unwrap_or(0));
+        let mut test = None;
+        for k in 2..=REWRITE_FLIPS {
+            let mut lowering: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
+            for set in subsets(near.len(), k) {
+                let flips: Vec<[i64; 3]> = set.iter().map(|&i| near[i]).collect();
+                if !flips.iter().any(|p| corners.contains(p)) {
+                    continue;
+                }
+                let d = change(vol, &flips);
+                if d < 0 {
+                    lowering.push((d, flips));
+                }
+            }
+            // Lowest count first; the topology test is the costly part.
+            lowering.sort_by_key(|(d, _)| *d);
+            let test = test.get_or_insert_with(|| SetTest::new(vol, lo, hi, self.conn));
+            if let Some((_, flips)) = lowering.into_iter().find(|(_, flips)| test.keeps(flips)) {
+                return Some(flips);
+            }
+        }
+        None
+    }
+}
+
+/// The `k`-element subsets of `0..n`, each in increasing order.
+fn subsets(n: usize, k: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    let mut set: Vec<usize> = (0..k).collect();
+    if k > n {
+        return out;
+    }
+    loop {
+        out.push(set.clone());
+        // The last place that can still move up, and everything after it reset behind it.
+        let Some(i) = (0..k).rev().find(|&i| set[i] < n - k + i) else {
+            return out;
+        };
+        set[i] += 1;
+        for j in i + 1..k {
+            set[j] = set[j - 1] + 1;
         }
     }
 }

@@ -155,6 +155,29 @@ fn shape(dims: [usize; 3], inside: impl Fn(usize, usize, usize) -> bool) -> InMe
     InMemoryVolume::from_fn(dims, |x, y, z| if inside(x, y, z) { 1.0 } else { -1.0 })
 }
 
+/// An 8 × 8 × 8 crop of `lidc2-chest-ct.nii.gz` at 59 (lowest corner (49, 165, 67)) as the step
+/// of the previous release left it: a plane of z per string, rows of y, `#` inside.
+const CHEST_CRACK: [&str; 8] = [
+    ".###.... ..#..... ........ ........ ........ ........ ........ ........",
+    "#####... .####... .####... ..###... ...#.... ........ ........ ........",
+    "####.... ##.##... #####... .#####.. ..####.. ...###.. ...###.. ....##..",
+    "####.... ##.##... ##..#... ###.##.. .###.#.. ..##.##. ..#####. ...#####",
+    "####.... #####... #####... ######.. ######.. .##..##. ..##..## ..###.##",
+    "........ #.#..... ####.... ##.##... ######.. .######. .###..#. ..##..##",
+    "........ ........ ........ ........ .####... .##..... .##...#. ..##..##",
+    "........ ........ ........ ........ ........ ........ ........ ..##..#.",
+];
+
+/// A volume of `dims` with `planes` (see [`CHEST_CRACK`]) set inside from (3, 3, 3).
+fn from_planes(dims: [usize; 3], planes: &[&str]) -> InMemoryVolume {
+    shape(dims, |x, y, z| {
+        let row = planes
+            .get(z.wrapping_sub(3))
+            .and_then(|p| p.split(' ').nth(y.wrapping_sub(3)));
+        row.and_then(|r| r.as_bytes().get(x.wrapping_sub(3))) == Some(&b'#')
+    })
+}
+
 /// Whether `p` lies in the cube of side `n` with lowest corner `lo`.
 fn in_cube(p: [usize; 3], lo: [usize; 3], n: usize) -> bool {
     (0..3).all(|c| (lo[c]..lo[c] + n).contains(&p[c]))
@@ -227,6 +250,15 @@ fn patterns() -> Vec<Case> {
                 let dent = y == 7 && z == 7 && (7..10).contains(&x);
                 in_cube([x, y, z], [2, 2, 2], 11) && !channel && !dent
             }),
+            0.0,
+        ),
+        // A crop of the chest CT round the last critical face the step left there: sheets one
+        // sample thick with a crack of the outside between them, passing across the face. No
+        // corner's flip is simple, nor any sequence of simple flips near it; a corner filled
+        // and a sample beside it let go, together, keep the topology.
+        case(
+            "crack between sheets (chest CT)",
+            from_planes(d, &CHEST_CRACK),
             0.0,
         ),
         // A ring of samples each touching the next along an edge, round a hole.
@@ -305,13 +337,13 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
         raw.0, raw.1, smooth.0, smooth.1
     );
     assert!(
-        raw.0 * 100 <= raw.1 * 3,
+        raw.0 * 100 <= raw.1,
         "raw noise: {} of {} critical cells left",
         raw.0,
         raw.1
     );
     assert!(
-        smooth.0 * 100 <= smooth.1,
+        smooth.0 * 1000 <= smooth.1 * 2,
         "smoothed noise: {} of {} left",
         smooth.0,
         smooth.1

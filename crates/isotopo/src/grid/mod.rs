@@ -37,6 +37,21 @@ impl BoxCells {
             .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
     }
 
+    /// Its samples, x fastest.
+    pub(crate) fn samples(&self) -> impl Iterator<Item = [i64; 3]> + '_ {
+        (0..self.len()).map(|c| self.sample(c))
+    }
+
+    /// Whether sample number `c` lies on the box's outer layer.
+    pub(crate) fn on_shell(&self, c: usize) -> bool {
+        let r = [
+            c % self.size[0],
+            c / self.size[0] % self.size[1],
+            c / (self.size[0] * self.size[1]),
+        ];
+        (0..3).any(|k| r[k] == 0 || r[k] + 1 == self.size[k])
+    }
+
     /// The sample numbered `c`.
     pub(crate) fn sample(&self, c: usize) -> [i64; 3] {
         let (x, y, z) = (
