@@ -768,13 +768,15 @@ impl Mender {
     }
 }
 
-/// Most flips in a rewrite (see `Mender::best_rewrite`): three within one sample of a cell are
-/// a few thousand sets to try; four would be ten times as many.
-const REWRITE_FLIPS: usize = 3;
+/// The rewrites tried, in turn (see `Mender::best_rewrite`): how many flips, and how far from
+/// the cell's cube they may be. Pairs reach two samples (a grain let go and put down at the
+/// cell, three samples away); three flips within one sample are a few thousand sets to try,
+/// within two they would be twenty times as many.
+const REWRITES: [(usize, i64); 2] = [(2, 2), (3, 1)];
 
 impl Mender {
-    /// The last resort: two or three flips within one sample of `cell`, one of them a corner,
-    /// that need not be simple one at a time but together keep the topology
+    /// The last resort: two flips within two samples of `cell`, or three within one, one of
+    /// them a corner, that need not be simple one at a time but together keep the topology
     /// ([`SetTest`]); the fewest flips, then the lowest count. Two sheets one sample thick
     /// that meet along an edge, with a crack of the other side between them, make faces whose
     /// every corner punches or seals a sheet; a corner let go and a sample of the crack filled
@@ -787,17 +789,17 @@ impl Mender {
     /// ```
     fn best_rewrite(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
         let corners = corners(vol, cell);
-        let near: Vec<[i64; 3]> = near(vol, cell)
-            .into_iter()
-            .filter(|p| {
-                self.only
-                    .is_none_or(|side| vol.get(p[0], p[1], p[2]) != side)
-            })
-            .collect();
-        let lo: [i64; 3] = std::array::from_fn(|c| near.iter().map(|p| p[c]).min().unwrap_or(0));
-        let hi: [i64; 3] = std::array::from_fn(|c| near.iter().map(|p| p[c]).max().unwrap_or(0));
+        let reach = REWRITES.iter().map(|r| r.1).max().unwrap_or(1);
+        let (lo, hi) = (cell.1.map(|c| c - reach), cell.1.map(|c| c + 1 + reach));
         let mut test = None;
-        for k in 2..=REWRITE_FLIPS {
+        for (k, r) in REWRITES {
+            let near: Vec<[i64; 3]> = around(vol, cell, r)
+                .into_iter()
+                .filter(|p| {
+                    self.only
+                        .is_none_or(|side| vol.get(p[0], p[1], p[2]) != side)
+                })
+                .collect();
             let mut lowering: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
             for set in subsets(near.len(), k) {
                 let flips: Vec<[i64; 3]> = set.iter().map(|&i| near[i]).collect();
@@ -945,11 +947,16 @@ fn corners(vol: &MaskVolume, (kind, c): Cell) -> Vec<[i64; 3]> {
 }
 
 /// The in-volume samples within one sample of a cell's cube (4 × 4 × 4).
-fn near(vol: &MaskVolume, (_, c): Cell) -> Vec<[i64; 3]> {
-    let mut out = Vec::with_capacity(64);
-    for z in -1..=2 {
-        for y in -1..=2 {
-            for x in -1..=2 {
+fn near(vol: &MaskVolume, cell: Cell) -> Vec<[i64; 3]> {
+    around(vol, cell, 1)
+}
+
+/// The in-volume samples within `r` samples of a cell's cube.
+fn around(vol: &MaskVolume, (_, c): Cell, r: i64) -> Vec<[i64; 3]> {
+    let mut out = Vec::with_capacity((2 * r as usize + 2).pow(3));
+    for z in -r..=1 + r {
+        for y in -r..=1 + r {
+            for x in -r..=1 + r {
                 let p = [c[0] + x, c[1] + y, c[2] + z];
                 if within(vol, p) {
                     out.push(p);
