@@ -2,9 +2,10 @@
 //!
 //! Where a unit face shows one diagonal, or a unit cube two opposite corners alone
 //! ([`crate::topology::critical`]), connectivity 6 and 26, VTK and scikit-image each pass the
-//! surface their own way. This step removes those patterns by flipping *simple* samples only
-//! (a flip that changes no component, handle or cavity of the chosen connectivity;
-//! `grid::simple`), so the topology the user chose is kept and every mesher sees it.
+//! surface their own way. This step removes those patterns by flipping *simple* samples (a
+//! flip that changes no component, handle or cavity of the chosen connectivity;
+//! `grid::simple`) or, where none helps, small sets of flips that keep the number of each
+//! together, so the topology the user chose is kept and every mesher sees it.
 //!
 //! ```text
 //!   # .        # #        a diagonal face: flip one of its corners, the one whose flip is
@@ -32,8 +33,8 @@
 //!   path is looked for near the face, then up to [`FAR_SWAP_REACH`] away: a thread of one
 //!   sample that passes itself diagonally closes its loop far from there (the MNI map's last
 //!   two critical faces);
-//! - last, two or three flips within one sample of the cell that are not simple one at a time
-//!   but keep the topology together, checked in a box round them (`Mender::best_rewrite`,
+//! - last, two flips within two samples of the cell or three within one, not simple one at a
+//!   time but keeping the topology together, checked in a box round them (`Mender::best_rewrite`,
 //!   `grid::simple::SetTest`): a crack between two sheets that crosses a face diagonally goes round it.
 //!
 //! Every change keeps the components, handles and cavities of the chosen connectivity (a
@@ -66,13 +67,15 @@ pub struct Composition {
     /// The samples flipped, in volume-local coordinates, with the side each ends on (a sample
     /// flipped and flipped back is not listed).
     pub flips: Vec<([i64; 3], bool)>,
-    /// Changes that took two or three flips (a sample stepping aside first, a detour, or a
-    /// rewrite).
+    /// Changes that took two or three simple flips (a sample stepping aside first, or a detour).
     pub pairs: u64,
     /// Specks moved aside whole (see [`MAX_SPECK`]) or cleared round, dents filled.
     pub moves: u64,
     /// Handles moved off a critical face (see `Mender::swap_handle`).
     pub swaps: u64,
+    /// Sets of two or three flips, not simple one at a time, that keep the topology together
+    /// (see `Mender::best_rewrite`).
+    pub rewrites: u64,
 }
 
 impl Composition {
@@ -91,7 +94,8 @@ pub fn count_volume(vol: &MaskVolume) -> CriticalCounts {
     counts
 }
 
-/// Makes the volume well-composed by flipping simple samples (see the module notes).
+/// Makes the volume well-composed by flipping simple samples, or sets of samples that keep the
+/// topology together (see the module notes).
 /// With `only` set, samples are flipped to that side only (inside: material is only added).
 pub fn compose(
     vol: &mut MaskVolume,
@@ -107,6 +111,7 @@ pub fn compose(
         pairs: 0,
         moves: 0,
         swaps: 0,
+        rewrites: 0,
     };
     let nw = vol.dims[2] as i64;
     progress.start("well-composed", nw as u64 + 1);
@@ -140,6 +145,7 @@ pub fn compose(
         pairs: mender.pairs,
         moves: mender.moves,
         swaps: mender.swaps,
+        rewrites: mender.rewrites,
     })
 }
 
@@ -152,6 +158,7 @@ struct Mender {
     pairs: u64,
     moves: u64,
     swaps: u64,
+    rewrites: u64,
 }
 
 impl Mender {
@@ -180,7 +187,7 @@ impl Mender {
                 self.swaps += 1;
                 swap
             } else if let Some(set) = self.best_rewrite(vol, cell) {
-                self.pairs += 1;
+                self.rewrites += 1;
                 set
             } else {
                 continue;
@@ -769,15 +776,16 @@ impl Mender {
 }
 
 /// The rewrites tried, in turn (see `Mender::best_rewrite`): how many flips, and how far from
-/// the cell's cube they may be. Pairs reach two samples (a grain let go and put down at the
-/// cell, three samples away); three flips within one sample are a few thousand sets to try,
-/// within two they would be twenty times as many.
+/// the cell's cube they may be. Sets hold a corner of the cell: pairs within two samples are
+/// about 900 (a face) to 1,700 (a cube) to try, and reach a grain three samples from the
+/// face, let go there and put down at the corner; triples within one sample are 7,400 to
+/// 13,900, within two they would be about twelve times as many.
 const REWRITES: [(usize, i64); 2] = [(2, 2), (3, 1)];
 
 impl Mender {
     /// The last resort: two flips within two samples of `cell`, or three within one, one of
     /// them a corner, that need not be simple one at a time but together keep the topology
-    /// ([`SetTest`]); the fewest flips, then the lowest count. Two sheets one sample thick
+    /// ([`SetTest`]; a handle may move); the fewest flips, then the lowest count. Two sheets one sample thick
     /// that meet along an edge, with a crack of the other side between them, make faces whose
     /// every corner punches or seals a sheet; a corner let go and a sample of the crack filled
     /// beside it punch and seal at once.
@@ -787,8 +795,9 @@ impl Mender {
     ///   # . # #   ->   # # # #      crossed a face diagonally; one flip seals it there, one
     ///   # # . #        # # . #      opens it beside, and it goes round
     /// ```
-    fn best_rewrite(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+    fn best_rewrite(&self, vol: &MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
         let corners = corners(vol, cell);
+        // Every set lies in the widest reach's box; one copy of it serves them all.
         let reach = REWRITES.iter().map(|r| r.1).max().unwrap_or(1);
         let (lo, hi) = (cell.1.map(|c| c - reach), cell.1.map(|c| c + 1 + reach));
         let (mut test, mut count) = (None, None);
@@ -812,6 +821,9 @@ impl Mender {
                 if d < 0 {
                     lowering.push((d, flips));
                 }
+            }
+            if lowering.is_empty() {
+                continue;
             }
             // Lowest count first; the topology test is the costly part.
             lowering.sort_by_key(|(d, _)| *d);
@@ -842,7 +854,8 @@ impl LocalCount {
             .map(|i| {
                 let c = cubes.sample(i);
                 (0..8).fold(0u8, |bits, k| {
-                    let q = [c[0] + (k & 1), c[1] + (k >> 1 & 1), c[2] + (k >> 2 & 1)];
+                    let d = corner_offset(k);
+                    let q = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
                     bits | u8::from(state(vol, q)) << k
                 })
             })
@@ -857,10 +870,12 @@ impl LocalCount {
         let mut flipped: Vec<(usize, u8)> = Vec::with_capacity(8 * flips.len());
         for p in flips {
             for k in 0..8 {
-                let c = [p[0] - (k & 1), p[1] - (k >> 1 & 1), p[2] - (k >> 2 & 1)];
-                let Some(i) = self.cubes.index(c) else {
-                    continue;
-                };
+                let d = corner_offset(k);
+                let c = [p[0] - d[0], p[1] - d[1], p[2] - d[2]];
+                let i = self
+                    .cubes
+                    .index(c)
+                    .expect("flips lie in the region the count was made for");
                 match flipped.iter_mut().find(|(j, _)| *j == i) {
                     Some((_, mask)) => *mask ^= 1 << k,
                     None => flipped.push((i, 1 << k)),
@@ -888,6 +903,12 @@ fn owned_critical(bits: u8) -> i64 {
         std::array::from_fn(|b| kinds.iter().filter(|&&k| critical(k, b as u8)).count() as u8)
     });
     i64::from(table[bits as usize])
+}
+
+/// Corner `k` of a cube from its lowest corner, as `cube_bits` numbers them: bit 0 of `k` is
+/// the step along x, bit 1 along y, bit 2 along z.
+fn corner_offset(k: u8) -> [i64; 3] {
+    [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from)
 }
 
 /// The `k`-element subsets of `0..n`, each in increasing order.
@@ -1007,7 +1028,7 @@ fn corners(vol: &MaskVolume, (kind, c): Cell) -> Vec<[i64; 3]> {
         CellKind::Cube => None,
     };
     (0..8u8)
-        .map(|k| [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from))
+        .map(corner_offset)
         .filter(|d| fixed.is_none_or(|a| d[a] == 0))
         .map(|d| [c[0] + d[0], c[1] + d[1], c[2] + d[2]])
         .filter(|&p| within(vol, p))
@@ -1040,7 +1061,7 @@ fn cells_at(p: [i64; 3]) -> [Cell; 20] {
     let mut out = [(CellKind::Cube, p); 20];
     let mut n = 0;
     for k in 0..8u8 {
-        let d = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from);
+        let d = corner_offset(k);
         let c = [p[0] - d[0], p[1] - d[1], p[2] - d[2]];
         out[n] = (CellKind::Cube, c);
         n += 1;
@@ -1072,6 +1093,7 @@ mod tests {
             pairs: 0,
             moves: 0,
             swaps: 0,
+            rewrites: 0,
         }
     }
 

@@ -141,11 +141,12 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
         "{what}: samples at the isovalue"
     );
     eprintln!(
-        "{what}: critical {first:?} -> {left:?}, {} flipped; {} pairs, {} specks moved, {} handles swapped",
+        "{what}: critical {first:?} -> {left:?}, {} flipped; {} pairs, {} specks moved, {} handles swapped, {} rewrites",
         composition.flips.len(),
         composition.pairs,
         composition.moves,
-        composition.swaps
+        composition.swaps,
+        composition.rewrites
     );
     left
 }

@@ -1,7 +1,8 @@
 //! Simple samples: those whose flip changes no topology of the solid or of its complement
 //! (Bertrand and Malandain's topological numbers, each side with its own adjacency, in the
-//! sample's 26-neighbourhood, are both 1). Thinning walls (`closure::peel`) and making the
-//! output well-composed (`compose`) flip only such samples.
+//! sample's 26-neighbourhood, are both 1). Thinning walls (`closure::peel`) flips only such
+//! samples; making the output well-composed (`compose`) flips them first, and as a last
+//! resort sets of samples that keep the topology together ([`SetTest`]).
 
 use crate::grid::{BoxCells, MaskVolume};
 use crate::topology::cases::Connectivity;
@@ -175,20 +176,22 @@ const SET_MARGIN: i64 = 3;
 /// flips within a region `lo ..= hi` are checked in a box round it, [`SET_MARGIN`] samples
 /// wider: the pieces of each side that reach the box's shell are joined the same way within
 /// it, as many pieces lie wholly inside, and the Euler characteristic is the same. The world
-/// beyond the box is unchanged and meets it only at its shell, so every component of the
-/// volume is kept; with both sides' components and the Euler characteristic kept, so is the
-/// number of handles. Pieces joined only beyond the box count as apart, so the test may refuse a set
+/// beyond the box is unchanged and meets it only at its shell, so the components of both
+/// sides are kept, hence the cavities (the other side's components but the outermost); with
+/// those and the Euler characteristic kept, so is the number of handles. Pieces joined only beyond the box count as apart, so the test may refuse a set
 /// that keeps the topology, never accept one that does not.
 ///
 /// ```text
 ///   +-------------+   shell: the box's outer layer, never flipped
 ///   |  . . . . .  |
-///   |  . f f f .  |   f: where flips may be, SET_MARGIN inside the shell
+///   |  . f f f .  |   f: where flips may be, SET_MARGIN samples inside the shell
 ///   |  . f f f .  |
 ///   |  . . . . .  |
 ///   +-------------+
 /// ```
 pub(crate) struct SetTest {
+    /// Where flips may be.
+    region: BoxCells,
     cells: BoxCells,
     conn: Connectivity,
     inside: Vec<bool>,
@@ -207,6 +210,7 @@ impl SetTest {
             .collect();
         let before = BoxShape::of(&cells, &inside, conn);
         SetTest {
+            region: BoxCells::new(lo, hi),
             cells,
             conn,
             inside,
@@ -216,6 +220,11 @@ impl SetTest {
 
     /// Whether flipping all of `flips` (samples of the region) keeps the topology.
     pub(crate) fn keeps(&mut self, flips: &[[i64; 3]]) -> bool {
+        // A flip nearer the shell than the margin would break the argument above.
+        if flips.iter().any(|&p| self.region.index(p).is_none()) {
+            debug_assert!(false, "a flip outside the region: {flips:?}");
+            return false;
+        }
         let six_side = self.conn == Connectivity::Six;
         let index: Vec<usize> = flips.iter().filter_map(|&p| self.cells.index(p)).collect();
         // The Euler characteristic first, from the cells round the flips alone: most sets

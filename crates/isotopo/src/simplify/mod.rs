@@ -867,6 +867,7 @@ impl<'a> Run<'a> {
         total.pairs += c.pairs;
         total.moves += c.moves;
         total.swaps += c.swaps;
+        total.rewrites += c.rewrites;
         Ok(flipped)
     }
 
