@@ -11,50 +11,6 @@ use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;
 use isotopo::{SimplifyOptions, Source};
 
-/// Critical faces and cubes of a mask (x fastest), padded with outside: counted sample by
-/// sample, sharing nothing with the library's word-wise count.
-fn critical(mask: &[bool], dims: [usize; 3]) -> (usize, usize) {
-    let [nx, ny, nz] = dims.map(|n| n as i64);
-    let at = |x: i64, y: i64, z: i64| -> bool {
-        x >= 0
-            && y >= 0
-            && z >= 0
-            && x < nx
-            && y < ny
-            && z < nz
-            && mask[((z * ny + y) * nx + x) as usize]
-    };
-    let (mut faces, mut cubes) = (0, 0);
-    for z in -1..nz {
-        for y in -1..ny {
-            for x in -1..nx {
-                let c = |dx: i64, dy: i64, dz: i64| at(x + dx, y + dy, z + dz);
-                // The three faces through (x, y, z) and the cube above it.
-                let squares = [
-                    [c(0, 0, 0), c(0, 1, 1), c(0, 1, 0), c(0, 0, 1)],
-                    [c(0, 0, 0), c(1, 0, 1), c(1, 0, 0), c(0, 0, 1)],
-                    [c(0, 0, 0), c(1, 1, 0), c(1, 0, 0), c(0, 1, 0)],
-                ];
-                for [a, d, b, e] in squares {
-                    if a == d && b == e && a != b {
-                        faces += 1;
-                    }
-                }
-                let corners: Vec<bool> = (0..8).map(|k| c(k & 1, (k >> 1) & 1, k >> 2)).collect();
-                let ones = corners.iter().filter(|&&v| v).count();
-                for k in 0..4 {
-                    let pair = [corners[k], corners[7 - k]];
-                    if (ones == 2 && pair == [true, true]) || (ones == 6 && pair == [false, false])
-                    {
-                        cubes += 1;
-                    }
-                }
-            }
-        }
-    }
-    (faces, cubes)
-}
-
 struct Case {
     name: String,
     vol: InMemoryVolume,
@@ -97,14 +53,14 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
         (chosen.0, chosen.1, chosen.2),
         "{what}: topology changed"
     );
-    let left = critical(&after, dims);
+    let left = common::critical_cells(&after, dims);
     let composition = done.outcome.composition.as_ref().expect("on by default");
     assert_eq!(
         (left.0 as u64, left.1 as u64),
         (composition.left.faces, composition.left.cubes),
         "{what}: critical cells left"
     );
-    let first = critical(&before, dims);
+    let first = common::critical_cells(&before, dims);
     assert_eq!(
         (first.0 as u64, first.1 as u64),
         (composition.before.faces, composition.before.cubes),
@@ -313,7 +269,7 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
         for conn in BOTH {
             let left = compose_and_check(&c, conn);
             raw.0 += left.0 + left.1;
-            let first = critical(&common::mask_of(&c.vol, iso), dims);
+            let first = common::critical_cells(&common::mask_of(&c.vol, iso), dims);
             raw.1 += first.0 + first.1;
         }
     }
@@ -329,7 +285,7 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
         for conn in BOTH {
             let left = compose_and_check(&c, conn);
             smooth.0 += left.0 + left.1;
-            let first = critical(&common::mask_of(&c.vol, iso), dims);
+            let first = common::critical_cells(&common::mask_of(&c.vol, iso), dims);
             smooth.1 += first.0 + first.1;
         }
     }

@@ -675,6 +675,61 @@ mod tests {
         a ^ b == 7
     }
 
+    /// Where a cube has no face with one diagonal and is not two opposite corners alone, both
+    /// connectivities cut the same surface: one piece with the same loops (the genus pass
+    /// copies the chosen connectivity's slices for the other's where no cube is critical).
+    #[test]
+    fn cubes_without_critical_patterns_have_one_surface_under_both() {
+        // Each face's corners as two diagonals (a, d) and (b, c).
+        const FACES: [[u8; 4]; 6] = [
+            [0, 6, 2, 4],
+            [1, 7, 3, 5],
+            [0, 5, 1, 4],
+            [2, 7, 3, 6],
+            [0, 3, 1, 2],
+            [4, 7, 5, 6],
+        ];
+        let mut compared = 0;
+        for case in 0..=255u8 {
+            let at = |k: u8| (case >> k) & 1;
+            let diagonal = FACES
+                .iter()
+                .any(|f| at(f[0]) == at(f[1]) && at(f[2]) == at(f[3]) && at(f[0]) != at(f[2]));
+            let ones = case.count_ones();
+            let lone = if ones == 6 { !case } else { case };
+            let opposite =
+                (ones == 2 || ones == 6) && (0..4).any(|k| lone == (1 << k) | (1 << (7 - k)));
+            if diagonal || opposite {
+                continue;
+            }
+            let [six, twenty_six] = BOTH.map(|conn| &cases(conn)[case as usize]);
+            assert_eq!(six.pieces.len(), twenty_six.pieces.len(), "{case:#010b}");
+            assert!(six.pieces.len() <= 1, "{case:#010b}");
+            // What the slices and the tracker read of a case.
+            let read = |c: &Case| {
+                (
+                    c.n_pieces,
+                    c.chi4,
+                    c.ribbon_chi4,
+                    c.z_upper,
+                    c.face_owner,
+                    c.face_segment,
+                    c.edge_owner,
+                )
+            };
+            assert_eq!(read(six), read(twenty_six), "{case:#010b}");
+            for (a, b) in six.pieces.iter().zip(&twenty_six.pieces) {
+                assert_eq!(
+                    (&a.loops, a.chi4, a.ribbon_chi4, a.z_face_segments),
+                    (&b.loops, b.chi4, b.ribbon_chi4, b.z_face_segments),
+                    "{case:#010b}"
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 100, "{compared}");
+    }
+
     #[test]
     fn pieces_follow_the_rule() {
         for conn in BOTH {

@@ -163,13 +163,74 @@ pub fn each_critical(
     }
 }
 
-/// The critical faces and cubes owned by the cubes between two planes.
+/// Whether some unit face of a plane shows one diagonal, word by word: with `a`, `b` the
+/// corners at columns `i`, `i + 1` of one row and `c`, `d` those of the next,
+///
+/// ```text
+///   c d      a diagonal when a == d, b == c and a != b
+///   a b
+/// ```
+pub fn has_diagonal_face(plane: &PlaneMask) -> bool {
+    // Each bit's right neighbour: the word shifted, with the next word's first bit on top.
+    let next = |r: &[u64], w: usize| (r[w] >> 1) | r.get(w + 1).map_or(0, |x| x << 63);
+    (0..=plane.ny).any(|j| {
+        let (r0, r1) = (plane.row(j), plane.row(j + 1));
+        (0..plane.words).any(|w| {
+            let (a, b, c, d) = (r0[w], next(r0, w), r1[w], next(r1, w));
+            !(a ^ d) & !(b ^ c) & (a ^ b) != 0
+        })
+    })
+}
+
+/// For each pair of opposite corners (k, 7 - k), k < 4, the other six.
+const OTHERS: [[usize; 6]; 4] = [
+    [1, 2, 3, 4, 5, 6],
+    [0, 2, 3, 4, 5, 7],
+    [0, 1, 3, 4, 6, 7],
+    [0, 1, 2, 5, 6, 7],
+];
+
+/// The critical faces and cubes owned by the cubes between two planes, 64 cubes at a time:
+/// word `w` of `c[k]` holds corner `k` of the cubes of columns `64 w ..`, and each pattern is
+/// a few bitwise operations on those words (the genus pass counts every slice of a volume).
 pub fn count_critical(lower: &PlaneMask, upper: &PlaneMask) -> CriticalCounts {
+    // Each bit's right neighbour: the word shifted, with the next word's first bit on top.
+    let next = |r: &[u64], w: usize| (r[w] >> 1) | r.get(w + 1).map_or(0, |x| x << 63);
     let mut counts = CriticalCounts::default();
-    each_critical(lower, upper, |_, _, kind| match kind {
-        CellKind::Cube => counts.cubes += 1,
-        _ => counts.faces += 1,
-    });
+    for j in 0..=lower.ny {
+        let rows = [
+            lower.row(j),
+            lower.row(j + 1),
+            upper.row(j),
+            upper.row(j + 1),
+        ];
+        for w in 0..lower.words {
+            // Corner k = dx + 2 dy + 4 dz: row (dy, dz), shifted by dx.
+            let c: [u64; 8] = std::array::from_fn(|k| {
+                let r = rows[(k >> 1) & 3];
+                if k & 1 == 0 {
+                    r[w]
+                } else {
+                    next(r, w)
+                }
+            });
+            let same = |a: usize, b: usize| !(c[a] ^ c[b]);
+            for [a, d, b, e] in FACES.map(|(_, f)| f.map(usize::from)) {
+                let diagonal = same(a, d) & same(b, e) & (c[a] ^ c[b]);
+                counts.faces += u64::from(diagonal.count_ones());
+            }
+            // Two opposite corners alone: they agree, differ from a third, and the other five
+            // agree with that third.
+            for (k, others) in OTHERS.iter().enumerate() {
+                let lone = others[1..]
+                    .iter()
+                    .fold(same(k, 7 - k) & (c[k] ^ c[others[0]]), |m, &q| {
+                        m & same(others[0], q)
+                    });
+                counts.cubes += u64::from(lone.count_ones());
+            }
+        }
+    }
     counts
 }
 
@@ -214,6 +275,74 @@ mod tests {
         assert!(critical_cube(bits(&[[0, 0, 0], [1, 1, 1]])));
         assert!(critical_cube(!bits(&[[1, 0, 0], [0, 1, 1]])));
         assert!(!critical_cube(bits(&[[0, 0, 0], [1, 1, 0]])));
+    }
+
+    /// The word-wise test agrees with the cube-wise count of a plane's own faces (the cubes
+    /// between a plane and itself own its z-faces and have no other critical cell), on random
+    /// planes of widths across a word's edge.
+    #[test]
+    fn diagonal_faces_word_by_word() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut seen = [0, 0];
+        for round in 0..400 {
+            let (nx, ny) = (1 + round % 70, 1 + round % 5);
+            let mut p = PlaneMask::empty(nx, ny);
+            // Sparse to dense: few planes of the dense ones lack a diagonal.
+            let density = 1 + round % 9;
+            for y in 0..ny {
+                for x in 0..nx {
+                    p.set(x, y, random() % 10 < density as u64);
+                }
+            }
+            let expected = count_critical(&p, &p).faces > 0;
+            assert_eq!(has_diagonal_face(&p), expected, "round {round}");
+            seen[usize::from(expected)] += 1;
+        }
+        assert!(seen[0] > 50 && seen[1] > 50, "{seen:?}");
+    }
+
+    /// The word-wise count equals the cube-by-cube one (`each_critical`), on random planes of
+    /// widths across a word's edge and densities from sparse to dense.
+    #[test]
+    fn counts_word_by_word_as_cube_by_cube() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut total = CriticalCounts::default();
+        for round in 0..300 {
+            let (nx, ny) = (1 + round % 131, 1 + round % 4);
+            let density = 1 + round % 9;
+            let mut planes = [PlaneMask::empty(nx, ny), PlaneMask::empty(nx, ny)];
+            for p in &mut planes {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        p.set(x, y, random() % 10 < density as u64);
+                    }
+                }
+            }
+            let mut expected = CriticalCounts::default();
+            each_critical(&planes[0], &planes[1], |_, _, kind| match kind {
+                CellKind::Cube => expected.cubes += 1,
+                _ => expected.faces += 1,
+            });
+            assert_eq!(
+                count_critical(&planes[0], &planes[1]),
+                expected,
+                "round {round}"
+            );
+            total.add(expected);
+        }
+        assert!(total.faces > 1000 && total.cubes > 100, "{total:?}");
     }
 
     #[test]

@@ -434,23 +434,29 @@ struct SliceSurvey {
     at_iso: u64,
 }
 
+/// The survey of the slice between `lo` and `up`, whose surface under the chosen connectivity
+/// is `surfels`. Where no cube of the slice has a critical face or is critical itself, the
+/// other connectivity cuts the same pieces in every cube: its surfels are a copy (most slices
+/// of a scan; building them again was most of the survey's time).
 fn survey_slice(
     lo: &PlaneMask,
     up: &PlaneMask,
-    z: i32,
+    surfels: &SliceSurfels,
     values: Option<&Samples>,
     classifier: &Classifier,
     conn: Connectivity,
 ) -> SliceSurvey {
-    let at_iso = values.map_or(0, |v| {
-        (0..v.len())
-            .filter(|&i| classifier.on_iso_raw(v.get_f64(i)))
-            .count() as u64
-    });
+    // The cubes between the planes own their lower z-face; the upper one is the next slice's.
+    let critical = super::critical::count_critical(lo, up);
+    let other = if critical.total() == 0 && !super::critical::has_diagonal_face(up) {
+        surfels.clone()
+    } else {
+        SliceSurfels::build(lo, up, surfels.z, conn.other())
+    };
     SliceSurvey {
-        other: SliceSurfels::build(lo, up, z, conn.other()),
-        critical: super::critical::count_critical(lo, up),
-        at_iso,
+        other,
+        critical,
+        at_iso: values.map_or(0, |v| classifier.count_on_iso(v)),
     }
 }
 
@@ -520,7 +526,8 @@ pub fn genus(
                     scaling: info.scaling,
                 };
                 let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
-                let survey = survey_slice(lo, &planes[k], z, values[k].as_ref(), &classifier, conn);
+                let survey =
+                    survey_slice(lo, &planes[k], &s, values[k].as_ref(), &classifier, conn);
                 (s, areas, survey)
             })
             .collect();

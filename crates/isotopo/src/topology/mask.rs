@@ -66,6 +66,12 @@ impl Classifier {
         self.scaling.apply(raw) == self.iso
     }
 
+    /// How many raw samples of a slice lie exactly on the isovalue ([`Classifier::on_iso_raw`]),
+    /// in one loop per stored type.
+    pub fn count_on_iso(&self, samples: &Samples) -> u64 {
+        with_samples!(samples, v => count_on_iso(v, self))
+    }
+
     /// The isovalue in stored units (before the header's scaling).
     pub fn raw_iso(&self) -> f64 {
         (self.iso - self.scaling.inter) / self.scaling.slope
@@ -145,6 +151,14 @@ impl PlaneMask {
     pub fn fill(&mut self, samples: &Samples, c: &Classifier) {
         debug_assert_eq!(samples.len(), self.nx * self.ny);
         with_samples!(samples, v => fill_rows(self, v, c));
+    }
+}
+
+fn count_on_iso<T: Sample>(v: &[T], c: &Classifier) -> u64 {
+    if c.scaling.is_identity() {
+        v.iter().filter(|x| x.to_f64() == c.iso).count() as u64
+    } else {
+        v.iter().filter(|x| c.on_iso_raw(x.to_f64())).count() as u64
     }
 }
 

@@ -161,3 +161,47 @@ pub fn fixture(name: &str) -> InMemoryVolume {
         }
     })
 }
+
+/// Critical faces and cubes of a mask (x fastest), padded with outside: counted sample by
+/// sample, sharing nothing with the library's word-wise count.
+pub fn critical_cells(mask: &[bool], dims: [usize; 3]) -> (usize, usize) {
+    let [nx, ny, nz] = dims.map(|n| n as i64);
+    let at = |x: i64, y: i64, z: i64| -> bool {
+        x >= 0
+            && y >= 0
+            && z >= 0
+            && x < nx
+            && y < ny
+            && z < nz
+            && mask[((z * ny + y) * nx + x) as usize]
+    };
+    let (mut faces, mut cubes) = (0, 0);
+    for z in -1..nz {
+        for y in -1..ny {
+            for x in -1..nx {
+                let c = |dx: i64, dy: i64, dz: i64| at(x + dx, y + dy, z + dz);
+                // The three faces through (x, y, z) and the cube above it.
+                let squares = [
+                    [c(0, 0, 0), c(0, 1, 1), c(0, 1, 0), c(0, 0, 1)],
+                    [c(0, 0, 0), c(1, 0, 1), c(1, 0, 0), c(0, 0, 1)],
+                    [c(0, 0, 0), c(1, 1, 0), c(1, 0, 0), c(0, 1, 0)],
+                ];
+                for [a, d, b, e] in squares {
+                    if a == d && b == e && a != b {
+                        faces += 1;
+                    }
+                }
+                let corners: Vec<bool> = (0..8).map(|k| c(k & 1, (k >> 1) & 1, k >> 2)).collect();
+                let ones = corners.iter().filter(|&&v| v).count();
+                for k in 0..4 {
+                    let pair = [corners[k], corners[7 - k]];
+                    if (ones == 2 && pair == [true, true]) || (ones == 6 && pair == [false, false])
+                    {
+                        cubes += 1;
+                    }
+                }
+            }
+        }
+    }
+    (faces, cubes)
+}
