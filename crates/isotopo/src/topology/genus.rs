@@ -460,8 +460,93 @@ fn survey_slice(
     }
 }
 
+/// Planes `z0 + 1 ..= z1` of a batch, read ahead: their masks and samples (`None` for the
+/// padding plane `nz`). The buffers are kept from batch to batch.
+#[derive(Default)]
+struct Batch {
+    planes: Vec<PlaneMask>,
+    values: Vec<Option<Samples>>,
+}
+
+impl Batch {
+    /// Reads planes `z0 + 1 ..= z1` into this batch's buffers and classifies them.
+    fn read(
+        &mut self,
+        reader: &mut dyn SliceReader,
+        classifier: &Classifier,
+        z0: i32,
+        z1: i32,
+    ) -> Result<()> {
+        let info = reader.info();
+        let ([nx, ny, nz], dtype) = (info.dims, info.dtype);
+        let n = (z1 - z0) as usize;
+        self.planes.truncate(n);
+        self.values.truncate(n);
+        self.planes.resize_with(n, || PlaneMask::empty(nx, ny));
+        self.values.resize_with(n, || None);
+        for (k, p) in (z0 + 1..=z1).enumerate() {
+            if p < nz as i32 {
+                let s = self.values[k].get_or_insert_with(|| Samples::new(dtype));
+                reader.read_slice(s)?;
+            } else {
+                self.values[k] = None;
+                self.planes[k].bits.fill(0);
+            }
+        }
+        self.planes
+            .par_iter_mut()
+            .zip(self.values.par_iter())
+            .for_each(|(plane, v)| {
+                if let Some(v) = v {
+                    plane.fill(v, classifier);
+                }
+            });
+        Ok(())
+    }
+}
+
+/// A slice's surfels, their ribbons' areas and its survey.
+type BuiltSlice = (SliceSurfels, Vec<f64>, SliceSurvey);
+
+/// Both connectivities' surfaces, joined slice after slice, and the survey's totals.
+struct GenusTracking {
+    chosen: SurfaceTracker,
+    other: SurfaceTracker,
+    /// The last slice added, and its ribbons' base index, for each tracker.
+    prev: Option<(SliceSurfels, u32)>,
+    prev_other: Option<(SliceSurfels, u32)>,
+    agreement: Agreement,
+}
+
+impl GenusTracking {
+    fn add(
+        &mut self,
+        built: Vec<BuiltSlice>,
+        conn: Connectivity,
+        progress: &dyn Progress,
+    ) -> Result<()> {
+        for (s, areas, survey) in built {
+            let prev = self.prev.as_ref().map(|(p, b)| (p, *b));
+            let base = self.chosen.add_slice(&s, &areas, prev, conn)?;
+            self.prev = Some((s, base));
+            let o = survey.other;
+            let prev = self.prev_other.as_ref().map(|(p, b)| (p, *b));
+            let base = self.other.add_slice(&o, &[], prev, conn.other())?;
+            self.prev_other = Some((o, base));
+            self.agreement.critical.add(survey.critical);
+            self.agreement.samples_at_iso += survey.at_iso;
+            progress.advance(1);
+            crate::progress::between_steps(progress, "genus pass")?;
+        }
+        Ok(())
+    }
+}
+
 /// Runs the genus pass over a volume, streaming its slices; also surveys where meshers may
 /// disagree ([`Agreement`]).
+///
+/// Batches of slices are built in parallel; while one batch's slices are joined to the
+/// surfaces (in order, on one thread), the next batch is read and classified.
 pub fn genus(
     reader: &mut dyn SliceReader,
     opts: &SurfaceOptions,
@@ -471,88 +556,76 @@ pub fn genus(
     let [nx, ny, nz] = info.dims;
     let classifier = opts.classifier(&info);
     let conn = opts.connectivity;
-    let mut tracker = SurfaceTracker::default();
-    let mut other = SurfaceTracker::default();
-    let mut agreement = Agreement {
-        other_connectivity: conn.other().number(),
-        ..Agreement::default()
+    let mut tracking = GenusTracking {
+        chosen: SurfaceTracker::default(),
+        other: SurfaceTracker::default(),
+        prev: None,
+        prev_other: None,
+        agreement: Agreement {
+            other_connectivity: conn.other().number(),
+            ..Agreement::default()
+        },
     };
-    crate::volume::reserve_slices(&info, BATCH + 1, "the genus pass reads them in batches")?;
+    crate::volume::reserve_slices(
+        &info,
+        2 * BATCH + 1,
+        "the genus pass reads them in batches, one ahead",
+    )?;
     progress.start("genus", nz as u64 + 1);
-    // Planes -1 ..= nz with their samples; a batch covers slices z0 .. z0 + BATCH (lower planes).
+    // Planes -1 ..= nz with their samples; a batch covers slices z0 .. z1 (lower planes), and
+    // holds their upper planes z0 + 1 ..= z1.
     let mut lower_plane = PlaneMask::empty(nx, ny);
     let mut lower_values: Option<Samples> = None;
-    let mut prev: Option<(SliceSurfels, u32)> = None;
-    let mut prev_other: Option<(SliceSurfels, u32)> = None;
+    let (mut cur, mut next) = (Batch::default(), Batch::default());
     let mut z0: i32 = -1;
+    let mut z1 = (z0 + BATCH as i32).min(nz as i32);
+    cur.read(reader, &classifier, z0, z1)?;
     while z0 < nz as i32 {
-        let z1 = (z0 + BATCH as i32).min(nz as i32); // slices z0 .. z1 (exclusive)
-                                                     // Upper planes z0+1 ..= z1.
-        let mut planes = Vec::with_capacity((z1 - z0) as usize);
-        let mut values = Vec::with_capacity((z1 - z0) as usize);
-        for p in z0 + 1..=z1 {
-            if p < nz as i32 {
-                let mut s = Samples::new(info.dtype);
-                reader.read_slice(&mut s)?;
-                values.push(Some(s));
-            } else {
-                values.push(None);
-            }
-            planes.push(PlaneMask::empty(nx, ny));
-        }
-        planes
-            .par_iter_mut()
-            .zip(values.par_iter())
-            .for_each(|(plane, v)| {
-                if let Some(v) = v {
-                    plane.fill(v, &classifier);
-                }
-            });
-        let built: Vec<(SliceSurfels, Vec<f64>, SliceSurvey)> = (0..(z1 - z0) as usize)
+        let built: Vec<BuiltSlice> = (0..(z1 - z0) as usize)
             .into_par_iter()
             .map(|k| {
                 let (lo, lo_v) = if k == 0 {
                     (&lower_plane, lower_values.as_ref())
                 } else {
-                    (&planes[k - 1], values[k - 1].as_ref())
+                    (&cur.planes[k - 1], cur.values[k - 1].as_ref())
                 };
+                let (up, up_v) = (&cur.planes[k], cur.values[k].as_ref());
                 let z = z0 + k as i32;
-                let s = SliceSurfels::build(lo, &planes[k], z, conn);
+                let s = SliceSurfels::build(lo, up, z, conn);
                 let sv = SliceValues {
                     lower: lo_v,
-                    upper: values[k].as_ref(),
+                    upper: up_v,
                     nx,
                     ny,
                     scaling: info.scaling,
                 };
                 let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
-                let survey =
-                    survey_slice(lo, &planes[k], &s, values[k].as_ref(), &classifier, conn);
+                let survey = survey_slice(lo, up, &s, up_v, &classifier, conn);
                 (s, areas, survey)
             })
             .collect();
-        for (s, areas, survey) in built {
-            let base = tracker.add_slice(&s, &areas, prev.as_ref().map(|(p, b)| (p, *b)), conn)?;
-            prev = Some((s, base));
-            let o = survey.other;
-            let base = other.add_slice(
-                &o,
-                &[],
-                prev_other.as_ref().map(|(p, b)| (p, *b)),
-                conn.other(),
-            )?;
-            prev_other = Some((o, base));
-            agreement.critical.add(survey.critical);
-            agreement.samples_at_iso += survey.at_iso;
-            progress.advance(1);
-            crate::progress::between_steps(progress, "genus pass")?;
+        let z2 = (z1 + BATCH as i32).min(nz as i32);
+        let (tracked, read) = rayon::join(
+            || tracking.add(built, conn, progress),
+            || match z1 < nz as i32 {
+                true => next.read(reader, &classifier, z1, z2),
+                false => Ok(()),
+            },
+        );
+        tracked?;
+        read?;
+        // The batch's last plane is the next batch's lower plane; the old lower plane's
+        // buffers go back into the batch for reuse.
+        if let (Some(p), Some(v)) = (cur.planes.last_mut(), cur.values.last_mut()) {
+            std::mem::swap(&mut lower_plane, p);
+            std::mem::swap(&mut lower_values, v);
         }
-        lower_plane = planes.pop().unwrap_or_else(|| PlaneMask::empty(nx, ny));
-        lower_values = values.pop().flatten();
-        z0 = z1;
+        std::mem::swap(&mut cur, &mut next);
+        (z0, z1) = (z1, z2);
     }
     progress.finish();
-    let o = other.report(info.dims, &info.affine)?;
+    let o = tracking.other.report(info.dims, &info.affine)?;
+    let mut agreement = tracking.agreement;
     (agreement.b0, agreement.b1, agreement.b2) = (o.b0, o.b1, o.b2);
-    Ok((tracker.report(info.dims, &info.affine)?, agreement))
+    Ok((tracking.chosen.report(info.dims, &info.affine)?, agreement))
 }
