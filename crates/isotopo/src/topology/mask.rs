@@ -156,7 +156,13 @@ impl PlaneMask {
 
 fn count_on_iso<T: Sample>(v: &[T], c: &Classifier) -> u64 {
     if c.scaling.is_identity() {
-        v.iter().filter(|x| x.to_f64() == c.iso).count() as u64
+        // Compared in the stored type, a loop the compiler vectorizes: no sample can equal an
+        // isovalue that the type cannot hold.
+        let t = T::from_f64(c.iso);
+        if t.to_f64() != c.iso {
+            return 0;
+        }
+        v.iter().map(|&x| (x == t) as u64).sum()
     } else {
         v.iter().filter(|x| c.on_iso_raw(x.to_f64())).count() as u64
     }
@@ -229,8 +235,8 @@ mod tests {
     use super::*;
     use crate::volume::DType;
 
-    /// The vectorized per-type comparison agrees with `value > iso` in f64 for every type,
-    /// isovalues on and between representable values, and both sides.
+    /// The vectorized per-type comparisons agree with `value > iso` and `value == iso` in f64
+    /// for every type, isovalues on and between representable values, and both sides.
     #[test]
     fn fill_agrees_with_the_f64_rule() {
         let (nx, ny) = (131, 3);
@@ -283,6 +289,12 @@ mod tests {
                         };
                         let mut p = PlaneMask::empty(nx, ny);
                         p.fill(&s, &c);
+                        let on_iso =
+                            (0..nx * ny).filter(|&i| c.on_iso_raw(s.get_f64(i))).count() as u64;
+                        assert_eq!(c.count_on_iso(&s), on_iso, "{t} iso {iso} {scaling:?}");
+                        if iso == 100.0 && scaling.is_identity() {
+                            assert!(on_iso > 0, "{t}: the samples set to 100 count");
+                        }
                         for y in 0..ny {
                             for x in 0..nx {
                                 let want = c.inside_raw(s.get_f64(y * nx + x));
