@@ -192,3 +192,149 @@ impl Caches {
         self.failed.retain(|k, _| memo.contains_key(k));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::loops::{Encloses, Loop};
+    use crate::surface::Vertex;
+
+    /// A loop through the x edges at `points` (a measurement's curves; the tests only read
+    /// their vertices and length).
+    fn curve(points: &[[i64; 3]], length: usize) -> Loop {
+        Loop {
+            vertices: points.iter().map(|&p| Vertex { p, axis: 0 }).collect(),
+            points: Vec::new(),
+            length,
+            length_mm: length as f64,
+            encloses: Encloses::Void,
+        }
+    }
+
+    fn measured(points: &[[i64; 3]], exact: bool, both: bool) -> HandleLoops {
+        HandleLoops {
+            reeb: Some(curve(points, 40)),
+            cross: both.then(|| curve(points, 30)),
+            exact,
+            ..HandleLoops::default()
+        }
+    }
+
+    fn limits(below: f64, metric: Metric) -> Limits {
+        Limits {
+            below,
+            metric,
+            size_only: true,
+        }
+    }
+
+    fn wall(p: [i64; 3]) -> BBox {
+        let mut b = BBox::EMPTY;
+        b.include(p);
+        b
+    }
+
+    /// The margin the documentation promises for a search limit `r`: a loop shorter than r
+    /// crossing a curve lies within r/√2 voxels of it, plus two for the edges' ends.
+    fn margin(r: f64) -> i64 {
+        (r / std::f64::consts::SQRT_2).ceil() as i64 + 2
+    }
+
+    /// Whether the measurement offered under `lim` is still there after a wall at `at`.
+    fn survives(l: &HandleLoops, lim: Limits, at: [i64; 3]) -> bool {
+        let mut lasting = Lasting::default();
+        lasting.offer(7, l, lim);
+        assert!(lasting.get(7).is_some(), "the measurement is kept at first");
+        lasting.forget_near(&[wall(at)]);
+        lasting.get(7).is_some()
+    }
+
+    #[test]
+    fn a_measurement_lasts_only_when_its_reach_is_known() {
+        let origin = [[0, 0, 0]];
+        let offered = |l: &HandleLoops, lim: Limits| {
+            let mut lasting = Lasting::default();
+            lasting.offer(3, l, lim);
+            lasting.get(3).map(|k| k.reeb.as_ref().map(|r| r.length))
+        };
+        let edges = limits(20.0, Metric::Edges);
+        assert_eq!(
+            offered(&measured(&origin, true, false), edges),
+            Some(Some(40))
+        );
+        assert_eq!(
+            offered(&measured(&origin, false, true), edges),
+            None,
+            "inexact"
+        );
+        let mm = limits(20.0, Metric::Millimetres);
+        assert_eq!(
+            offered(&measured(&origin, true, true), mm),
+            None,
+            "millimetres"
+        );
+        // No limit: the reach is the longer loop's, so both must have been found.
+        let inf = limits(f64::INFINITY, Metric::Edges);
+        assert_eq!(offered(&measured(&origin, true, true), inf), Some(Some(40)));
+        assert_eq!(
+            offered(&measured(&origin, true, false), inf),
+            None,
+            "one loop"
+        );
+        assert!(Lasting::default().get(3).is_none());
+    }
+
+    /// A wall within the margin of a curve's vertex forgets the measurement; one a block of
+    /// samples beyond it does not (the reach is kept in blocks of `LASTING_BLOCK`).
+    #[test]
+    fn a_wall_within_the_reach_forgets_and_one_beyond_it_does_not() {
+        for (r, both) in [(20.0, false), (6.0, false), (40.0, true)] {
+            let l = measured(&[[0, 0, 0]], true, both);
+            let lim = limits(r, Metric::Edges);
+            let m = margin(r);
+            for near in [[m, 0, 0], [-m, 0, 0], [0, m, 0], [0, 0, -m], [1 + m, 0, 0]] {
+                assert!(!survives(&l, lim, near), "r {r}: wall at {near:?}");
+            }
+            for far in [
+                [1 + m + LASTING_BLOCK, 0, 0],
+                [0, -m - LASTING_BLOCK - 1, 0],
+            ] {
+                assert!(survives(&l, lim, far), "r {r}: wall at {far:?}");
+            }
+        }
+    }
+
+    /// Up to a margin of `LASTING_MAX_BLOCK_MARGIN` the reach follows the curves: a wall in
+    /// their bounding box but far from every vertex leaves the measurement. Beyond, the reach
+    /// is the box grown by the margin.
+    #[test]
+    fn the_reach_follows_the_curves_up_to_the_largest_block_margin() {
+        let corners = [[0, 0, 0], [200, 200, 0]];
+        // r = 42 gives a margin of exactly LASTING_MAX_BLOCK_MARGIN.
+        for r in [20.0, 42.0] {
+            assert!(margin(r) <= LASTING_MAX_BLOCK_MARGIN);
+            let l = measured(&corners, true, false);
+            assert!(survives(&l, limits(r, Metric::Edges), [200, 0, 0]), "r {r}");
+            assert!(
+                !survives(&l, limits(r, Metric::Edges), [200, 190, 0]),
+                "r {r}"
+            );
+        }
+        assert_eq!(margin(42.0), LASTING_MAX_BLOCK_MARGIN);
+        let r = 60.0;
+        let (l, lim, m) = (
+            measured(&corners, true, false),
+            limits(r, Metric::Edges),
+            margin(r),
+        );
+        assert!(m > LASTING_MAX_BLOCK_MARGIN);
+        assert!(!survives(&l, lim, [200 + m, 100, 0]));
+        assert!(
+            !survives(&l, lim, [201 + m, 100, 0]),
+            "a vertex's edge ends at x + 1"
+        );
+        assert!(!survives(&l, lim, [-m, 100, 0]));
+        assert!(survives(&l, lim, [201 + m + 1, 100, 0]));
+        assert!(survives(&l, lim, [100, 100, -m - 1]));
+    }
+}
