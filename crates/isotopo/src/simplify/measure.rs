@@ -337,4 +337,24 @@ mod tests {
         assert!(survives(&l, lim, [201 + m + 1, 100, 0]));
         assert!(survives(&l, lim, [100, 100, -m - 1]));
     }
+
+    /// This pass's memo forgets the loops a wall comes within two samples of (and whether
+    /// their walls were refused), and only those.
+    #[test]
+    fn a_wall_near_a_loop_forgets_that_loops_measurement_in_the_pass() {
+        let mut c = Caches::new(Connectivity::Six);
+        // The first loop's one vertex is the x edge from (0, 0, 0) to (1, 0, 0).
+        c.memo.insert(1, measured(&[[0, 0, 0]], true, true));
+        c.memo.insert(2, measured(&[[100, 0, 0]], true, false));
+        c.failed.insert(1, ());
+        c.failed.insert(2, ());
+        c.forget_near(&[wall([4, 0, 0])]);
+        assert!(
+            c.memo.contains_key(&1) && c.failed.contains_key(&1),
+            "3 samples away"
+        );
+        c.forget_near(&[wall([3, 0, 0])]);
+        assert!(!c.memo.contains_key(&1) && !c.failed.contains_key(&1));
+        assert!(c.memo.contains_key(&2) && c.failed.contains_key(&2));
+    }
 }
