@@ -429,3 +429,202 @@ fn close_handle_by<'l>(
     }
     None
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Frame;
+    use crate::loops::Encloses;
+
+    fn x_edges(points: &[[i64; 3]]) -> Vec<Vertex> {
+        points.iter().map(|&p| Vertex { p, axis: 0 }).collect()
+    }
+
+    /// A loop of `length` edges (the walls only read its vertices and length).
+    fn a_loop(vertices: Vec<Vertex>, length: usize) -> Loop {
+        Loop {
+            vertices,
+            points: Vec::new(),
+            length,
+            length_mm: length as f64,
+            encloses: Encloses::Void,
+        }
+    }
+
+    fn names(walls: &[Wall]) -> Vec<String> {
+        walls.iter().map(|w| format!("{w:?}")).collect()
+    }
+
+    /// The peeled walls in the documented order: regions near the fan at each reach, then the
+    /// box round the loop with margin 2, then with a quarter of the loop (at least 4); each with
+    /// its 8 cuts.
+    fn peeled(wide: i64) -> Vec<String> {
+        let mut out = Vec::new();
+        for d in ["1.5", "3.0", "5.0"] {
+            out.extend((0..8).map(|k| format!("Peel({d}, {k})")));
+        }
+        for m in [2, wide] {
+            out.extend((0..8).map(|k| format!("PeelBox({m}, {k})")));
+        }
+        out
+    }
+
+    #[test]
+    fn walls_across_a_loop_come_in_the_documented_order() {
+        let square = x_edges(&[[4, 4, 4], [4, 5, 4], [5, 4, 4], [5, 5, 4]]);
+        for (op, conn) in [
+            (Operation::Collapse, Connectivity::Six),
+            (Operation::Pinch, Connectivity::Six),
+            (Operation::Collapse, Connectivity::TwentySix),
+        ] {
+            let base = base_thickness(op, conn);
+            for length in [4, 8, 9, 40] {
+                let lp = a_loop(square.clone(), length);
+                let walls = walls_for(&lp, op, conn, &[], WallReach::Across);
+                // Fans first, thicker and thicker.
+                for (w, extra) in walls.iter().zip([0.0, 0.5, 1.0]) {
+                    let Wall::Fan(d) = *w else {
+                        panic!("{w:?} is not a fan")
+                    };
+                    assert!((d - base - extra).abs() < 1e-12 && d <= MAX_FAN_THICKNESS);
+                }
+                // Single samples only for loops of at most 8 edges.
+                let singles = match length <= 8 {
+                    true => closure::single_sample_walls(&square, SINGLE_SAMPLE_REACH),
+                    false => Vec::new(),
+                };
+                let rest = &walls[3..];
+                assert_eq!(
+                    names(&rest[..singles.len()]),
+                    names(&singles.iter().map(|&q| Wall::Single(q)).collect::<Vec<_>>())
+                );
+                let wide = (length as i64 / 4).max(4);
+                assert_eq!(
+                    names(&rest[singles.len()..]),
+                    peeled(wide),
+                    "length {length}"
+                );
+            }
+        }
+        assert!(!closure::single_sample_walls(&square, SINGLE_SAMPLE_REACH).is_empty());
+        assert_eq!(names(&[Wall::Fan(0.5)]), ["Fan(0.5)"]);
+    }
+
+    /// The thickest fan is what the samples near the fan are first gathered for.
+    #[test]
+    fn the_thickest_fan_is_max_fan_thickness() {
+        let lp = a_loop(x_edges(&[[0, 0, 0]]), 40);
+        let mut thickest: f64 = 0.0;
+        for op in [Operation::Collapse, Operation::Pinch] {
+            for conn in [Connectivity::Six, Connectivity::TwentySix] {
+                for w in walls_for(&lp, op, conn, &[], WallReach::Across) {
+                    if let Wall::Fan(d) = w {
+                        thickest = thickest.max(d);
+                    }
+                }
+            }
+        }
+        assert!((thickest - MAX_FAN_THICKNESS).abs() < 1e-12, "{thickest}");
+    }
+
+    #[test]
+    fn walls_along_the_partner_need_a_partner() {
+        let lp = a_loop(x_edges(&[[0, 0, 0]]), 40);
+        let (op, conn) = (Operation::Pinch, Connectivity::Six);
+        assert!(walls_for(&lp, op, conn, &[], WallReach::Along).is_empty());
+        let partner = x_edges(&[[0, 0, 0], [0, 1, 0]]);
+        let mut want = Vec::new();
+        for m in [2, 10] {
+            for j in 1..8 {
+                want.extend((0..8).map(|k| format!("PeelAlong({j}, {m}, {k})")));
+            }
+        }
+        assert_eq!(
+            names(&walls_for(&lp, op, conn, &partner, WallReach::Along)),
+            want
+        );
+    }
+
+    #[test]
+    fn a_box_region_is_the_points_box_grown_and_clamped_to_the_volume() {
+        let vol = MaskVolume::new([20, 20, 20], Frame::identity());
+        let (region, b) = box_region(&vol, &[[5.5, 6.0, 7.25]], 2);
+        assert_eq!((b.min, b.max), ([3, 4, 5], [8, 8, 10]));
+        assert_eq!(region.len(), 6 * 5 * 6);
+        assert!(region
+            .iter()
+            .all(|p| (0..3).all(|k| b.min[k] <= p[k] && p[k] <= b.max[k])));
+        // Near a corner: the box as computed, the region within the volume.
+        let (region, b) = box_region(&vol, &[[0.5, 0.5, 19.5]], 3);
+        assert_eq!((b.min, b.max), ([-3, -3, 16], [4, 4, 23]));
+        assert_eq!(region.len(), 5 * 5 * 4);
+        assert!(region.contains(&[0, 0, 19]) && region.contains(&[4, 4, 16]));
+        // At most MAX_PEEL_BOX samples.
+        let vol = MaskVolume::new([128, 128, 65], Frame::identity());
+        let (region, _) = box_region(&vol, &[[0.0, 0.0, 0.0], [127.0, 127.0, 63.0]], 0);
+        assert_eq!(region.len(), MAX_PEEL_BOX);
+        let (region, b) = box_region(&vol, &[[0.0, 0.0, 0.0], [127.0, 127.0, 64.0]], 0);
+        assert!(region.is_empty());
+        assert_eq!(b.max, [127, 127, 64]);
+    }
+
+    #[test]
+    fn the_ring_is_looked_for_round_the_loop_and_its_partner() {
+        let points = [[1.5, 2.0, 3.0]];
+        // The partner's edge runs from (4, 2, 3) to (4, 3, 3).
+        let partner = [Vertex {
+            p: [4, 2, 3],
+            axis: 1,
+        }];
+        let t = peel_target(&points, &partner, 40, BBox::EMPTY);
+        assert_eq!((t.lo, t.hi), ([-2, -1, 0], [7, 6, 6]));
+        // No partner: a quarter of the loop, at least 3.
+        let t = peel_target(&points, &[], 40, BBox::EMPTY);
+        assert_eq!((t.lo, t.hi), ([-9, -8, -7], [12, 12, 13]));
+        let t = peel_target(&points, &[], 4, BBox::EMPTY);
+        assert_eq!((t.lo, t.hi), ([-2, -1, 0], [5, 5, 6]));
+        // The peeled region's box is included.
+        let region = BBox {
+            min: [-5, 0, 1],
+            max: [20, 1, 2],
+        };
+        let t = peel_target(&points, &partner, 40, region);
+        assert_eq!((t.lo, t.hi), ([-5, -1, 0], [20, 6, 6]));
+    }
+
+    #[test]
+    fn peeling_aims_where_the_partner_crosses_and_moves_along_it() {
+        let points = [
+            [0.5, 0.0, 0.0],
+            [5.5, 0.0, 0.0],
+            [10.5, 0.0, 0.0],
+            [5.5, 4.0, 0.0],
+        ];
+        let partner = [Vertex {
+            p: [5, 1, 0],
+            axis: 1,
+        }];
+        assert_eq!(peel_centre(&points, &partner), [5.5, 0.0, 0.0]);
+        assert_eq!(peel_centre(&points, &[]), [5.5, 1.0, 0.0]);
+        // A partner of 8 edges along y; the crossing nearest its third.
+        let partner: Vec<Vertex> = (0..8)
+            .map(|y| Vertex {
+                p: [5, y, 0],
+                axis: 1,
+            })
+            .collect();
+        let centre = [5.0, 2.4, 0.0];
+        let (moved, at) = moved_along(&points, centre, &partner, 0);
+        assert_eq!(at, [5.0, 2.5, 0.0]);
+        let (moved4, at4) = moved_along(&points, centre, &partner, 4);
+        assert_eq!(at4, [5.0, 6.5, 0.0]);
+        let (_, at7) = moved_along(&points, centre, &partner, 7);
+        assert_eq!(at7, [5.0, 1.5, 0.0], "round the partner");
+        for (k, p) in points.iter().enumerate() {
+            for a in 0..3 {
+                assert!((moved[k][a] - (p[a] + at[a] - centre[a])).abs() < 1e-12);
+                assert!((moved4[k][a] - (p[a] + at4[a] - centre[a])).abs() < 1e-12);
+            }
+        }
+    }
+}
