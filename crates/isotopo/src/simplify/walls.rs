@@ -561,7 +561,7 @@ mod tests {
         assert!(region.contains(&[0, 0, 19]) && region.contains(&[4, 4, 16]));
         // At most MAX_PEEL_BOX samples.
         let vol = MaskVolume::new([128, 128, 65], Frame::identity());
-        let (region, _) = box_region(&vol, &[[0.0, 0.0, 0.0], [127.0, 127.0, 63.0]], 0);
+        let (region, _) = box_region(&vol, &[[0.0, 0.0, 1.0], [127.0, 127.0, 64.0]], 0);
         assert_eq!(region.len(), MAX_PEEL_BOX);
         let (region, b) = box_region(&vol, &[[0.0, 0.0, 0.0], [127.0, 127.0, 64.0]], 0);
         assert!(region.is_empty());
@@ -626,5 +626,26 @@ mod tests {
                 assert!((moved4[k][a] - (p[a] + at4[a] - centre[a])).abs() < 1e-12);
             }
         }
+    }
+
+    /// The thickness each wall reports (`Removed::thickness`) and the names the reports count
+    /// walls by.
+    #[test]
+    fn walls_report_their_thickness_and_a_name_each() {
+        let walls = [
+            (Wall::Fan(1.25), 1.25, "fan"),
+            (
+                Wall::Single([1, 2, 3]),
+                SINGLE_SAMPLE_REACH,
+                "single_sample",
+            ),
+            (Wall::Peel(3.0, 2), 3.0, "peeled"),
+            (Wall::PeelBox(7, 0), 7.0, "peeled_box"),
+            (Wall::PeelAlong(3, 5, 1), 5.0, "peeled_along"),
+        ];
+        for (w, thickness, name) in walls {
+            assert_eq!((w.thickness(), w.name()), (thickness, name));
+        }
+        assert_eq!(SINGLE_SAMPLE_REACH, 1.8);
     }
 }
