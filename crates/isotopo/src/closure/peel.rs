@@ -247,7 +247,7 @@ impl<'a> Ring<'a> {
             .iter()
             .map(|p| std::array::from_fn(|k| p[k] as f64 + nudge[k]))
             .collect();
-        crate::loops::linking_number(&ring, self.target.loop_points).abs() > 0.5
+        crate::loops::linking_number(&ring, self.target.loop_points) != 0
     }
 }
 
