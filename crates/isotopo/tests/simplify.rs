@@ -626,7 +626,7 @@ fn walls_the_fan_cannot_close_are_closed_otherwise() {
         (258, Connectivity::Six, Axis::Y, 20.0),
         (292, Connectivity::Six, Axis::X, 12.0),
     ];
-    let mut other_walls = 0;
+    let (mut other_walls, mut refused) = (0, 0);
     for (seed, conn, axis, tau) in failing {
         let mut rng = Rng(0xfeed ^ (seed * 7919));
         let n = 10 + rng.below(12) as usize;
@@ -648,8 +648,17 @@ fn walls_the_fan_cannot_close_are_closed_otherwise() {
             out.kept
         );
         other_walls += out.removed.iter().filter(|r| r.wall != "fan").count();
+        // The refusals reported add up, reason by reason.
+        let by_reason: usize = out.refused_by.values().sum();
+        assert_eq!(out.refused, by_reason, "seed {seed}: {:?}", out.refused_by);
+        refused += out.refused;
     }
     assert!(other_walls >= 3, "only {other_walls} walls other than fans");
+    // A wall other than a fan is tried only after the three fans across its loop were refused.
+    assert!(
+        refused >= 3 * other_walls,
+        "{refused} refused, {other_walls} other walls"
+    );
 }
 
 /// A torus whose tube is hollow where it is thinnest:
