@@ -240,24 +240,14 @@ fn close_loop(
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
     let centre = peel_centre(&points, partner);
     let mut peeled: Vec<Vec<[i64; 3]>> = Vec::new();
-    // The samples near the fan, gathered once as far as the walls tried so far need.
-    let mut near: Option<closure::NearFan> = None;
-    let mut near_fan = |d: f64| -> Vec<[i64; 3]> {
-        if near.as_ref().is_none_or(|n| n.reach < d) {
-            // Fans need up to their thickest; peeled regions, the widest reach at once.
-            let reach = if d <= MAX_FAN_THICKNESS {
-                MAX_FAN_THICKNESS
-            } else {
-                PEEL_REACH[PEEL_REACH.len() - 1]
-            };
-            near = Some(closure::NearFan::new(&points, reach.max(d)));
-        }
-        near.as_ref().expect("set above").within(d)
+    let mut near = NearFanSamples {
+        points: &points,
+        near: None,
     };
     for &op in ops {
         for w in walls_for(lp, op, conn, partner, reach) {
             let samples = match w {
-                Wall::Fan(d) => near_fan(d),
+                Wall::Fan(d) => near.within(d),
                 Wall::Single([u, v, w]) if vol.get(u, v, w) == op.target() => continue,
                 Wall::Single(q) => vec![q],
                 // Peeled once per region; its cuts are tried in turn.
@@ -271,7 +261,7 @@ fn close_loop(
                 // along the partner (towards where the partner lands).
                 Wall::Peel(..) | Wall::PeelBox(..) | Wall::PeelAlong(..) => {
                     let (region, b, at) = match w {
-                        Wall::Peel(d, _) => (near_fan(d), BBox::EMPTY, centre),
+                        Wall::Peel(d, _) => (near.within(d), BBox::EMPTY, centre),
                         Wall::PeelBox(margin, _) => {
                             let (region, b) = box_region(vol, &points, margin);
                             (region, b, centre)
@@ -309,6 +299,28 @@ fn close_loop(
         }
     }
     None
+}
+
+/// The samples near a loop's fan, gathered once as far as the walls tried so far need.
+struct NearFanSamples<'p> {
+    points: &'p [[f64; 3]],
+    near: Option<closure::NearFan>,
+}
+
+impl NearFanSamples<'_> {
+    /// The samples within `d` of the fan (see [`closure::NearFan::within`]).
+    fn within(&mut self, d: f64) -> Vec<[i64; 3]> {
+        if self.near.as_ref().is_none_or(|n| n.reach < d) {
+            // Fans need up to their thickest; peeled regions, the widest reach at once.
+            let reach = if d <= MAX_FAN_THICKNESS {
+                MAX_FAN_THICKNESS
+            } else {
+                PEEL_REACH[PEEL_REACH.len() - 1]
+            };
+            self.near = Some(closure::NearFan::new(self.points, reach.max(d)));
+        }
+        self.near.as_ref().expect("set above").within(d)
+    }
 }
 
 /// Closes one of a handle's loops: the candidates (loops below tau, shortest first), then, if
@@ -449,6 +461,36 @@ mod tests {
             length_mm: length as f64,
             encloses: Encloses::Void,
         }
+    }
+
+    /// Gathered once for the thinnest fan, the samples near the fan are gathered again as far
+    /// as a wider wall needs: every call gives what a fresh gathering to that reach gives.
+    #[test]
+    fn samples_near_the_fan_reach_as_far_as_each_wall_needs() {
+        let points: Vec<[f64; 3]> = (0..24)
+            .map(|k| {
+                let t = k as f64 / 24.0 * std::f64::consts::TAU;
+                [10.0 + 6.0 * t.cos(), 10.5 + 6.0 * t.sin(), 8.5]
+            })
+            .collect();
+        let fresh = |d: f64| closure::NearFan::new(&points, d).within(d);
+        let mut near = NearFanSamples {
+            points: &points,
+            near: None,
+        };
+        let widest = PEEL_REACH[PEEL_REACH.len() - 1];
+        let reaches = [
+            0.5,
+            MAX_FAN_THICKNESS,
+            PEEL_REACH[0],
+            widest,
+            1.0,
+            widest + 2.0,
+        ];
+        for d in reaches {
+            assert_eq!(near.within(d), fresh(d), "reach {d}");
+        }
+        assert!(fresh(widest).len() > fresh(MAX_FAN_THICKNESS).len());
     }
 
     fn names(walls: &[Wall]) -> Vec<String> {
