@@ -737,3 +737,36 @@ fn a_hollow_bar_is_cut_where_it_is_solid() {
         }
     }
 }
+
+/// A short loop whose fans are all refused is closed by flipping one sample next to it (a
+/// single-sample wall), where that sample is not already on the closure's side: on these
+/// random volumes (cases of the generator of `random_volumes_keep_every_guarantee`, at tau
+/// inf) such walls close handles, each changing exactly one sample.
+#[test]
+fn single_sample_walls_close_what_fans_cannot() {
+    let cases = [
+        (13u64, Connectivity::TwentySix),
+        (23, Connectivity::Six),
+        (72, Connectivity::TwentySix),
+        (175, Connectivity::TwentySix),
+        (221, Connectivity::Six),
+    ];
+    let mut singles = 0;
+    for (case, conn) in cases {
+        let mut rng = Rng(0xfeed ^ (case * 7919));
+        let n = 10 + rng.below(11) as usize;
+        let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
+        let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
+        let vol = common::volume_from(dims, &v);
+        let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
+        let opts = options(f64::INFINITY, Mode::Both, conn);
+        let (out, _) = check(&format!("case {case}"), &vol, iso, Axis::Z, &opts)
+            .unwrap_or_else(|e| panic!("{e}"));
+        for r in out.removed.iter().filter(|r| r.wall == "single_sample") {
+            assert_eq!(r.samples_changed, 1, "case {case}: {r:?}");
+            assert!(r.length <= 8, "case {case}: a loop of {} edges", r.length);
+            singles += 1;
+        }
+    }
+    assert!(singles >= cases.len(), "{singles} single-sample walls");
+}
