@@ -447,6 +447,19 @@ fn tau_keeps_the_large_handle_and_removes_the_small_one() {
     }
 }
 
+/// Case `case` of the random volumes: smoothed noise of side 10 to 20 thresholded at a
+/// quantile between 0.3 and 0.7 (the volume, its isovalue, and the case's generator for what
+/// else it draws).
+fn random_case(case: u64) -> (InMemoryVolume, f64, Rng) {
+    let mut rng = Rng(0xfeed ^ (case * 7919));
+    let n = 10 + rng.below(11) as usize;
+    let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
+    let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
+    let vol = common::volume_from(dims, &v);
+    let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
+    (vol, iso, rng)
+}
+
 /// The property test: random smoothed noise (hundreds of handles, nested ones, tiny components
 /// and cavities), every combination of connectivity, sweep axis, tau (finite and infinite) and
 /// mode drawn independently; every guarantee of `check`, the independent oracles deciding.
@@ -460,12 +473,7 @@ fn random_volumes_keep_every_guarantee() {
     let mut removed = 0;
     let mut seen = std::collections::HashSet::new();
     for case in 0..cases {
-        let mut rng = Rng(0xfeed ^ (case * 7919));
-        let n = 10 + rng.below(11) as usize;
-        let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
-        let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
-        let vol = common::volume_from(dims, &v);
-        let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
+        let (vol, iso, mut rng) = random_case(case);
         // Every combination of connectivity, axis, finite or infinite tau and mode in turn.
         let combo = case as usize % 36;
         let conn = BOTH[combo % 2];
@@ -753,12 +761,7 @@ fn single_sample_walls_close_what_fans_cannot() {
     ];
     let mut singles = 0;
     for (case, conn) in cases {
-        let mut rng = Rng(0xfeed ^ (case * 7919));
-        let n = 10 + rng.below(11) as usize;
-        let dims = [n, n + rng.below(4) as usize, n - 1 - rng.below(3) as usize];
-        let v = common::smoothed_noise(dims, 1 + rng.below(3) as usize, &mut rng);
-        let vol = common::volume_from(dims, &v);
-        let iso = common::quantile(&v, 0.3 + 0.4 * rng.f64());
+        let (vol, iso, _) = random_case(case);
         let opts = options(f64::INFINITY, Mode::Both, conn);
         let (out, _) = check(&format!("case {case}"), &vol, iso, Axis::Z, &opts)
             .unwrap_or_else(|e| panic!("{e}"));
