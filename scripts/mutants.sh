@@ -22,6 +22,6 @@ export CARGO_PROFILE_RELEASE_INCREMENTAL=true CARGO_PROFILE_RELEASE_DEBUG=false
 cargo mutants --in-place "${files[@]}" --test-package isotopo --profile release --timeout 150 \
   --cargo-test-arg=--test=jobs --cargo-test-arg=--test=simplify \
   --cargo-test-arg=--test=oracle_systole --cargo-test-arg=--test=sweep \
-  --cargo-test-arg=--test=loops --cargo-test-arg=--lib \
+  --cargo-test-arg=--test=loops --cargo-test-arg=--test=parts --cargo-test-arg=--lib \
   --cargo-test-arg=-- --cargo-test-arg=--skip --cargo-test-arg=fill_only_and_cut_only_on_every_shape \
   -o "$out" "$@"
