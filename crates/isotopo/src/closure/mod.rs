@@ -504,6 +504,60 @@ mod tests {
         assert_eq!(point_triangle_dist2([2.0, -3.0, 0.0], a, b, c), 9.0);
     }
 
+    /// Random triangles and points, against the distance computed another way: the nearest of
+    /// the point's foot on the plane (when it falls inside, by signed areas) and the nearest
+    /// points of the three edges. Every one of the seven regions of the plane is met.
+    #[test]
+    fn triangle_distance_matches_feet_and_edges() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 8.0 - 4.0
+        };
+        let segment = |p: [f64; 3], u: [f64; 3], v: [f64; 3]| {
+            let (uv, up) = (sub(v, u), sub(p, u));
+            let t = (dot(uv, up) / dot(uv, uv)).clamp(0.0, 1.0);
+            let q = [u[0] + t * uv[0], u[1] + t * uv[1], u[2] + t * uv[2]];
+            dot(sub(p, q), sub(p, q))
+        };
+        let cross = |u: [f64; 3], v: [f64; 3]| {
+            [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ]
+        };
+        let mut regions = std::collections::HashSet::new();
+        for _ in 0..20_000 {
+            let [a, b, c, p]: [[f64; 3]; 4] = std::array::from_fn(|_| [next(), next(), next()]);
+            let n = cross(sub(b, a), sub(c, a));
+            if dot(n, n) < 1e-3 {
+                continue;
+            }
+            let h = dot(sub(p, a), n) / dot(n, n);
+            let foot = [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]];
+            let sides = [(a, b), (b, c), (c, a)]
+                .map(|(u, v)| dot(cross(sub(v, u), sub(foot, u)), n) >= 0.0);
+            let mut want = [(a, b), (b, c), (c, a)]
+                .iter()
+                .map(|&(u, v)| segment(p, u, v))
+                .fold(f64::INFINITY, f64::min);
+            if sides.iter().all(|&s| s) {
+                want = want.min(h * h * dot(n, n));
+            }
+            let got = point_triangle_dist2(p, a, b, c);
+            assert!(
+                (got - want).abs() <= 1e-9 * (1.0 + want),
+                "{p:?} {a:?} {b:?} {c:?}: {got} vs {want}"
+            );
+            regions.insert(sides);
+        }
+        // Inside, beyond one edge (3), beyond two (3): seven sign patterns of the foot.
+        assert_eq!(regions.len(), 7);
+    }
+
     /// A flat square loop in the plane z = 5 gives a wall of exactly that plane's samples inside
     /// it, at both thicknesses.
     #[test]
