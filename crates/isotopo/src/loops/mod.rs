@@ -1446,6 +1446,32 @@ pub fn measure_batch(
 mod tests {
     use super::*;
 
+    /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
+    /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
+    /// of the axes does not change it; a triangle closes along its diagonal; one point alone
+    /// has no length.
+    #[test]
+    fn polyline_lengths_close_the_loop_in_millimetres() {
+        let rect = [
+            [0.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.0, 2.0, 0.0],
+            [0.0, 2.0, 0.0],
+        ];
+        let spacing = Affine::from_spacing([0.5, 2.0, 1.0], [10.0, -4.0, 7.0]);
+        assert!((polyline_mm(&rect, &spacing) - 11.0).abs() < 1e-12);
+        let turned = Affine::from_parts(
+            [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            [0.5, 2.0, 1.0],
+            [0.0; 3],
+        );
+        assert!((polyline_mm(&rect, &turned) - 11.0).abs() < 1e-12);
+        // Three points: the closing edge is the diagonal, 1.5 mm by 4 mm.
+        let diagonal = (1.5f64 * 1.5 + 4.0 * 4.0).sqrt();
+        assert!((polyline_mm(&rect[..3], &spacing) - (1.5 + 4.0 + diagonal)).abs() < 1e-12);
+        assert_eq!(polyline_mm(&rect[..1], &spacing), 0.0);
+    }
+
     /// Smoothed random noise (`n`³, a 3×3×3 box filter), thresholded at its median: a sponge
     /// whose slices hold many intra-ribbon handles.
     fn sponge(n: usize, seed: u64) -> MaskVolume {
