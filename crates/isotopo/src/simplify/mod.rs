@@ -925,3 +925,38 @@ impl Found<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kept(size: usize, size_mm: f64) -> Kept {
+        Kept {
+            size: Some(size),
+            size_mm: Some(size_mm),
+            reeb: Some(size),
+            cross: None,
+            kind: HandleKind::ReebCycle,
+            reason: KeepReason::Size,
+            bbox: BBox::EMPTY,
+        }
+    }
+
+    /// `--keep-handles`: the tau just above the `remove` smallest sizes, in edges and in
+    /// millimetres; a handle without a size counts as the largest.
+    #[test]
+    fn keep_handles_tau_lies_just_above_the_smallest_to_remove() {
+        let (a, b, c) = (kept(9, 4.5), kept(4, 2.25), kept(6, 3.0));
+        let mut unsized_ = kept(1, 0.1);
+        (unsized_.size, unsized_.size_mm) = (None, None);
+        let hs = [&a, &b, &unsized_, &c];
+        assert_eq!(keep_handles_tau(&hs, Metric::Edges, 1), 4.5);
+        assert_eq!(keep_handles_tau(&hs, Metric::Edges, 2), 6.5);
+        assert_eq!(keep_handles_tau(&hs, Metric::Edges, 3), 9.5);
+        for (remove, size) in [(1, 2.25), (2, 3.0), (3, 4.5)] {
+            let tau = keep_handles_tau(&hs, Metric::Millimetres, remove);
+            assert!(tau > size && tau < size + 1e-9, "{remove}: {tau}");
+        }
+        assert_eq!(keep_handles_tau(&hs, Metric::Edges, 4), f64::INFINITY);
+    }
+}

@@ -797,3 +797,39 @@ fn check_parts(vol: &MaskVolume, opts: &SimplifyOptions, out: &Parts) -> Result<
     let cavities = spaces.iter().filter(|s| !s.exterior).count();
     Ok((comps.len() as u64, cavities as u64))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn removed(part: PartKind, operation: PartOperation, samples_changed: usize) -> PartRemoved {
+        PartRemoved {
+            part,
+            operation,
+            size: samples_changed,
+            samples_changed,
+            bbox: BBox::EMPTY,
+            path: Vec::new(),
+        }
+    }
+
+    /// The report's totals add up each kind's parts and each operation's, and only those.
+    #[test]
+    fn totals_count_each_kind_and_operation_apart() {
+        let parts = Parts {
+            removed: vec![
+                removed(PartKind::Component, PartOperation::Delete, 5),
+                removed(PartKind::Cavity, PartOperation::Fill, 7),
+                removed(PartKind::Component, PartOperation::Bridge, 11),
+                removed(PartKind::Cavity, PartOperation::Open, 13),
+                removed(PartKind::Cavity, PartOperation::Fill, 17),
+            ],
+            ..Parts::default()
+        };
+        assert_eq!(parts.samples_changed(PartKind::Component), 16);
+        assert_eq!(parts.samples_changed(PartKind::Cavity), 37);
+        assert_eq!(parts.count(PartOperation::Fill), 2);
+        assert_eq!(parts.count(PartOperation::Delete), 1);
+        assert_eq!(parts.count(PartOperation::Open), 1);
+    }
+}
