@@ -595,6 +595,12 @@ impl MiniRows {
     }
 }
 
+/// The cube's first coordinate of a piece of a [`MiniRows`] row (-1 for the padding's cubes:
+/// the shift keeps the sign).
+fn row_cube(piece: u64) -> i64 {
+    (piece as i64) >> 40
+}
+
 /// Pieces of the given ribbons of a mini-volume's cycle, within the original slice.
 fn mini_cycle_region(
     mini: &std::sync::Arc<MaskVolume>,
@@ -615,7 +621,7 @@ fn mini_cycle_region(
     for (&s, ribbons) in &by_slice {
         for &piece in rows.row(mini, s, allowed, conn) {
             if ribbons.contains(&(piece as u32)) {
-                set.insert([(piece >> 40) as i64, v, s], (piece >> 32) as u8);
+                set.insert([row_cube(piece), v, s], (piece >> 32) as u8);
             }
         }
     }
@@ -1445,6 +1451,52 @@ pub fn measure_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The row of a mini-volume's slice holds the pieces of exactly the cubes of the box's row
+    /// that the surface passes through (corners not all on one side), told from the samples.
+    #[test]
+    fn mini_rows_hold_the_cubes_of_their_row() {
+        let mut vol = MaskVolume::new([7, 5, 4], Frame::identity());
+        let mut state = 0x1234_5678_9abc_def1u64;
+        for z in 0..4 {
+            for y in 0..5 {
+                for x in 0..7 {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    vol.set(x, y, z, state.is_multiple_of(3));
+                }
+            }
+        }
+        let mini = std::sync::Arc::new(vol);
+        let inside = |x: i64, y: i64, z: i64| {
+            (0..7).contains(&x) && (0..5).contains(&y) && (0..4).contains(&z) && mini.get(x, y, z)
+        };
+        let mut rows = MiniRows::default();
+        let mut rows_seen = 0;
+        for v in -1..5 {
+            for s in -1..4 {
+                let allowed = ([-1, v, -1], [6, v, 3]);
+                let mut got: Vec<i64> = rows
+                    .row(&mini, s, allowed, Connectivity::Six)
+                    .iter()
+                    .map(|&piece| row_cube(piece))
+                    .collect();
+                got.dedup();
+                let want: Vec<i64> = (-1..7)
+                    .filter(|&x| {
+                        let corners =
+                            (0..8).map(|c| inside(x + (c & 1), v + (c >> 1 & 1), s + (c >> 2)));
+                        let n = corners.filter(|&b| b).count();
+                        n > 0 && n < 8
+                    })
+                    .collect();
+                assert_eq!(got, want, "row y = {v}, slice {s}");
+                rows_seen += !want.is_empty() as usize;
+            }
+        }
+        assert!(rows_seen > 20, "{rows_seen}");
+    }
 
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
     /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
