@@ -1498,6 +1498,59 @@ mod tests {
         assert!(rows_seen > 20, "{rows_seen}");
     }
 
+    /// Without a partner loop, the side a loop spans is read off its fan: round a bar of
+    /// 3 × 3 samples, material; round a hole of the same size through a block, void; the
+    /// same loop at any height of the bar and with its vertices in either order.
+    #[test]
+    fn a_fan_spans_the_bar_it_goes_round_or_the_hole() {
+        let ring = |z: i64| -> Vec<Vertex> {
+            let mut lp = Vec::new();
+            lp.extend((4..=6).map(|y| Vertex {
+                p: [3, y, z],
+                axis: 0,
+            }));
+            lp.extend((4..=6).map(|x| Vertex {
+                p: [x, 6, z],
+                axis: 1,
+            }));
+            lp.extend((4..=6).rev().map(|y| Vertex {
+                p: [6, y, z],
+                axis: 0,
+            }));
+            lp.extend((4..=6).rev().map(|x| Vertex {
+                p: [x, 3, z],
+                axis: 1,
+            }));
+            lp
+        };
+        for hole in [false, true] {
+            let mut vol = MaskVolume::new([11, 11, 5], Frame::identity());
+            for z in 0..5 {
+                for y in 0..11 {
+                    for x in 0..11 {
+                        let in_bar = (4..=6).contains(&x) && (4..=6).contains(&y);
+                        vol.set(x, y, z, in_bar != hole);
+                    }
+                }
+            }
+            let want = if hole {
+                Encloses::Void
+            } else {
+                Encloses::Material
+            };
+            for z in 0..5 {
+                let mut lp = ring(z);
+                assert_eq!(encloses_by_fan(&vol, &lp), want, "hole {hole}, z {z}");
+                lp.reverse();
+                assert_eq!(
+                    encloses_by_fan(&vol, &lp),
+                    want,
+                    "hole {hole}, z {z}, reversed"
+                );
+            }
+        }
+    }
+
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
     /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
     /// of the axes does not change it; a triangle closes along its diagonal; one point alone
