@@ -444,3 +444,54 @@ fn out_of_core_is_the_same_as_in_memory() {
         }
     }
 }
+
+/// `--min-cavity N` and `--min-component N` remove the parts of fewer than N samples and keep
+/// those of exactly N: a block with cavities of 1, 2 and 8 samples, beside specks of 1, 2 and
+/// 8 samples, at every threshold round those sizes.
+#[test]
+fn parts_of_exactly_the_minimum_size_stay() {
+    let hollow = |q: [usize; 3]| {
+        q == [4, 4, 4]
+            || (q[1] == 4 && q[2] == 9 && (4..=5).contains(&q[0]))
+            || cube_at([9, 9, 9]).contains(&q)
+    };
+    let speck = |q: [usize; 3]| {
+        q == [1, 1, 16]
+            || (q[1] == 8 && q[2] == 16 && (1..=2).contains(&q[0]))
+            || cube_at([12, 1, 16]).contains(&q)
+    };
+    let vol = InMemoryVolume::from_fn([16, 16, 19], |x, y, z| {
+        let q = [x, y, z];
+        let block = q.iter().take(2).all(|&c| (2..=13).contains(&c)) && (2..=13).contains(&z);
+        if (block && !hollow(q)) || speck(q) {
+            1.0
+        } else {
+            -1.0
+        }
+    });
+    for conn in BOTH {
+        let (comps, cavities) = parts_of(&common::mask_of(&vol, 0.0), vol.dims(), conn);
+        assert_eq!((comps.len(), cavities.len()), (4, 3), "{conn:?}");
+        for (min, left) in [
+            (1, vec![1, 2, 8]),
+            (2, vec![2, 8]),
+            (3, vec![8]),
+            (8, vec![8]),
+            (9, vec![]),
+        ] {
+            let opts = SimplifyOptions {
+                min_cavity: Some(min),
+                min_component: Some(min),
+                ..options(conn, 0.0)
+            };
+            let (_, mask) = run(&vol, &opts);
+            let (mut comps, mut cavities) = parts_of(&mask, vol.dims(), conn);
+            comps.sort();
+            cavities.sort();
+            assert_eq!(cavities, left, "{conn:?}, at least {min}: cavities");
+            // The block's size depends on how its cavities went (filled or opened): leave it out.
+            comps.pop();
+            assert_eq!(comps, left, "{conn:?}, at least {min}: specks");
+        }
+    }
+}
