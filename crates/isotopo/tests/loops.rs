@@ -341,3 +341,43 @@ fn a_one_voxel_bridge_has_size_4() {
         }
     }
 }
+
+/// `cross_loop` (the walls' last resort: the other loop of a loop without a partner, however
+/// long): on tori, given either loop of the handle, it returns a real loop that crosses it
+/// once and is as short as the handle's other loop (both are the shortest loop crossing it
+/// once).
+#[test]
+fn the_cross_loop_of_either_loop_is_the_other_loops_length() {
+    for (big, small, tilt) in [(10.0, 3.0, 0.0), (12.0, 4.0, 30.0)] {
+        for conn in BOTH {
+            let n = (2.0 * (big + small) + 6.0) as usize;
+            let mut vol = shapes::torus(n, big, small, f64::to_radians(tilt), 0.0, 0.0);
+            let opts = common::opts(0.0, conn);
+            let mut masks =
+                MaskVolume::from_reader_with_fractions(&mut vol, &opts, Axis::Z, None, &NoProgress)
+                    .unwrap();
+            let r = find_handles(&mut masks, Axis::Z, conn, &NoProgress).unwrap();
+            let mut g = Graph::new(&masks, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            let l = measure(
+                &mut g,
+                &mut cache,
+                &r.handles[0],
+                conn,
+                &Affine::IDENTITY,
+                Limits::NONE,
+            );
+            let (reeb, cross) = (l.reeb.unwrap(), l.cross.unwrap());
+            for (given, other) in [(&reeb, &cross), (&cross, &reeb)] {
+                let what = format!("R {big} r {small} tilt {tilt} conn {}", conn.number());
+                let found = isotopo::loops::cross_loop(&mut g, &given.vertices, usize::MAX)
+                    .unwrap_or_else(|| panic!("{what}: no cross loop"));
+                check_loop(&mut g, &found, &what).unwrap();
+                let parity =
+                    isotopo::surface::search::crossing_parity(&mut g, &found, &given.vertices);
+                assert_eq!(parity, Some(1), "{what}");
+                assert_eq!(found.len(), other.length, "{what}");
+            }
+        }
+    }
+}
