@@ -410,6 +410,35 @@ fn a_memory_limit_too_small_for_the_volume_is_exit_2_naming_what() {
         assert_eq!(std::fs::read(&output).unwrap(), b"the earlier output");
     }
     assert!(listing(dir.path()).len() == 3, "{:?}", listing(dir.path()));
+    // The labels of the components-and-cavities phase, 4 bytes a sample (64 MiB here): refused
+    // under a limit of 40 MiB that the volume's planes and one byte a sample would fit in.
+    let other = tempfile::tempdir().unwrap();
+    let zeros = other.path().join("zeros_256x256x256_uint8.raw");
+    std::fs::File::create(&zeros)
+        .unwrap()
+        .set_len(256 * 256 * 256)
+        .unwrap();
+    let out = other.path().join("out.nii");
+    let (code, _, stderr) = common::isotopo(&[
+        "simplify",
+        zeros.to_str().unwrap(),
+        "--iso",
+        "0.5",
+        "--tau",
+        "5",
+        "--min-cavity",
+        "10",
+        "--max-memory",
+        "40M",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(
+        stderr.contains("not enough memory for the labels of the components-and-cavities phase"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
     // A size that is not one is refused as such.
     let (code, _, stderr) =
         common::isotopo(&["genus", input, "--iso", "1", "--max-memory", "lots"]);
