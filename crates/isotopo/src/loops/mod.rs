@@ -1650,6 +1650,48 @@ mod tests {
         );
     }
 
+    /// The generators of the part of a ribbon in a box lie in the box: on a sponge, for every
+    /// ribbon of a slice with generators, the box round its first generator (two cubes wider)
+    /// gives generators again, every vertex of them within it.
+    #[test]
+    fn generators_of_a_ribbon_within_a_box_lie_in_it() {
+        let conn = Connectivity::Six;
+        let vol = sponge(24, 0x5851_f42d_4c95_7f2d);
+        let mut g = Graph::new(&vol, cases(conn));
+        let mut cache = SliceCache::new(conn);
+        let (mut ribbons, mut found) = (0, 0);
+        for s in 0..23 {
+            cache.ensure(&vol, s);
+            let n = cache.slices.get(&s).map_or(0, |(sl, _)| sl.ribbons.len());
+            for r in 0..n as u32 {
+                let all = ribbon_generators(&mut g, &mut cache, s, r).unwrap_or_default();
+                let Some(first) = all.first() else { continue };
+                // The cubes round vertex v have lower corners v.p - 1 ..= v.p.
+                let lo: [i64; 3] =
+                    std::array::from_fn(|k| first.iter().map(|v| v.p[k]).min().unwrap() - 3);
+                let hi: [i64; 3] =
+                    std::array::from_fn(|k| first.iter().map(|v| v.p[k]).max().unwrap() + 2);
+                let (lo, hi) = ([lo[0], lo[1], s], [hi[0], hi[1], s]);
+                let near = ribbon_generators_within(&mut g, &mut cache, s, r, Some((lo, hi)));
+                let near = near.unwrap_or_default();
+                for v in near.iter().flatten() {
+                    let within = (0..2).all(|k| v.p[k] >= lo[k] && v.p[k] <= hi[k] + 1);
+                    assert!(
+                        within,
+                        "slice {s} ribbon {r}: {v:?} outside {lo:?} ..= {hi:?}"
+                    );
+                }
+                ribbons += 1;
+                found += usize::from(!near.is_empty());
+            }
+        }
+        assert!(ribbons > 20, "{ribbons} ribbons with generators");
+        assert!(
+            found * 2 > ribbons,
+            "{found} of {ribbons} boxes hold generators"
+        );
+    }
+
     /// The `Q1` kept for the next intra-ribbon handle with the same `P` (see `first_loop`) is
     /// taken again only while it still crosses `P` once: measured again on the same volume the
     /// handle gets the same loops, and on a volume where the kept `Q1` was broken (its samples
