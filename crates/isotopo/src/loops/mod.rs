@@ -1583,6 +1583,44 @@ mod tests {
         assert_eq!(keys.len(), cuts.len());
     }
 
+    /// Slices cached before an edit are built again once `invalidate` names the planes
+    /// edited: the cache then serves the edited surface, slice for slice as a fresh build.
+    #[test]
+    fn an_invalidated_cache_serves_the_edited_slices() {
+        let conn = Connectivity::Six;
+        let mut vol = sponge(16, 0x2545_f491_4f6c_dd1d);
+        let mut cache = SliceCache::new(conn);
+        for s in 0..15 {
+            cache.ensure(&vol, s);
+        }
+        // Planes 6 ..= 8 edited: slices 5 ..= 8 hold them.
+        for z in 6..=8 {
+            for y in 5..=7 {
+                for x in 5..=7 {
+                    let inside = vol.get(x, y, z);
+                    vol.set(x as usize, y as usize, z as usize, !inside);
+                }
+            }
+        }
+        cache.invalidate(6, 8);
+        let cubes = |sl: &SliceSurfels| -> Vec<(u32, u32, u8)> {
+            sl.cubes.iter().map(|c| (c.i, c.j, c.case)).collect()
+        };
+        let mut changed = 0;
+        for s in 0..15 {
+            let fresh = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+            changed += usize::from(
+                cache
+                    .slices
+                    .get(&s)
+                    .is_none_or(|(sl, _)| cubes(sl) != cubes(&fresh)),
+            );
+            cache.ensure(&vol, s);
+            assert_eq!(cubes(&cache.slices[&s].0), cubes(&fresh), "slice {s}");
+        }
+        assert_eq!(changed, 4, "slices 5 ..= 8 forgotten, the others kept");
+    }
+
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
     /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
     /// of the axes does not change it; a triangle closes along its diagonal; one point alone
