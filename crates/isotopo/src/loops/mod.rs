@@ -1461,10 +1461,7 @@ mod tests {
         for z in 0..4 {
             for y in 0..5 {
                 for x in 0..7 {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    vol.set(x, y, z, state.is_multiple_of(3));
+                    vol.set(x, y, z, xorshift(&mut state).is_multiple_of(3));
                 }
             }
         }
@@ -1557,12 +1554,7 @@ mod tests {
     #[test]
     fn cut_keys_tell_cuts_apart() {
         let mut state = 0xd1b5_4a32_d192_ed03u64;
-        let mut next = |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
+        let mut next = |n: u64| xorshift(&mut state) % n;
         let mut cuts = std::collections::HashSet::new();
         while cuts.len() < 20_000 {
             let len = 3 + next(38) as usize;
@@ -1647,16 +1639,19 @@ mod tests {
         assert_eq!(polyline_mm(&rect[..1], &spacing), 0.0);
     }
 
+    /// The tests' random numbers: one xorshift step of `state`, returned.
+    fn xorshift(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
     /// Smoothed random noise (`n`³, a 3×3×3 box filter), thresholded at its median: a sponge
     /// whose slices hold many intra-ribbon handles.
     fn sponge(n: usize, seed: u64) -> MaskVolume {
         let mut state = seed;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || (xorshift(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
         let raw: Vec<f64> = (0..n * n * n).map(|_| next()).collect();
         let at = |x: usize, y: usize, z: usize| raw[(z * n + y) * n + x];
         let mut vol = MaskVolume::new([n, n, n], Frame::identity());
