@@ -826,7 +826,7 @@ fn find(
     if limits.size_only && top_level {
         match cross_is_smaller(top, cache, h, searcher, &p, limits) {
             Race::Cross(found) => return found,
-            Race::Reeb { search, first } => (searched, cheap) = (Some(search), Some(first)),
+            Race::Reeb { search, first } => (searched, cheap) = (Some(search), first),
             Race::Undecided => {}
         }
     }
@@ -1036,9 +1036,9 @@ fn race(
     p: &[Vertex],
     limits: Limits,
 ) -> Race {
-    let Some(first) = some_odd_loop(top, cache, h, p) else {
-        return Race::Undecided;
-    };
+    // The cheap loop is looked for only once the first search found nothing: most handles are
+    // noise, whose loop crossing `p` is shorter than the first limit.
+    let mut first = None;
     let mut limit = RACE_START.min(limits.below);
     loop {
         let r = searcher.odd_loop(top, p, limit);
@@ -1048,14 +1048,20 @@ fn race(
         if r.found.is_some() {
             return Race::Reeb { search: r, first };
         }
-        let c = searcher.odd_loop(top, &first, limit);
+        if first.is_none() {
+            first = some_odd_loop(top, cache, h, p);
+        }
+        let Some(first) = &first else {
+            return Race::Undecided;
+        };
+        let c = searcher.odd_loop(top, first, limit);
         if let Some(c) = c.found {
             // Shorter than the limit, which no loop crossing `p` is.
             return Race::Cross(Found {
                 reeb: Some(first.clone()),
                 cross: Some(c),
                 exact: false,
-                basis: Some((p.to_vec(), first)),
+                basis: Some((p.to_vec(), first.clone())),
             });
         }
         if !c.exact {
@@ -1063,7 +1069,10 @@ fn race(
         }
         if limit >= limits.below {
             // Neither loop is shorter than the limit: `r` is the search `find` would make.
-            return Race::Reeb { search: r, first };
+            return Race::Reeb {
+                search: r,
+                first: Some(first.clone()),
+            };
         }
         limit = (limit * 2.0).min(limits.below);
     }
@@ -1074,8 +1083,12 @@ enum Race {
     /// A loop crossing the cheap loop once is shorter than any crossing `p`: the handle's loops.
     Cross(Found),
     /// The exact search for the shortest loop crossing `p` below the race's last limit (the
-    /// Reeb loop, or none below the caller's limit), and the cheap loop crossing `p` once.
-    Reeb { search: OddLoop, first: Vec<Vertex> },
+    /// Reeb loop, or none below the caller's limit), and the cheap loop crossing `p` once if it
+    /// was looked for.
+    Reeb {
+        search: OddLoop,
+        first: Option<Vec<Vertex>>,
+    },
     /// The budgets ran out first.
     Undecided,
 }
