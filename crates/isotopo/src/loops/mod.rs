@@ -1946,7 +1946,7 @@ mod tests {
     /// The `Q1` kept for the next intra-ribbon handle with the same `P` (see `first_loop`) is
     /// taken again only while it still crosses `P` once: measured again on the same volume the
     /// handle gets the same loops, and on a volume where the kept `Q1` was broken (its samples
-    /// flipped) the same loops as with no kept `Q1`.
+    /// flipped) it is not taken, and the handle gets the same loops as with no kept `Q1`.
     #[test]
     fn a_kept_first_loop_is_taken_again_only_while_it_still_crosses_p() {
         let limits = Limits {
@@ -1978,7 +1978,18 @@ mod tests {
                 let Some((_, q1)) = cache.ribbon_start.clone() else {
                     continue;
                 };
+                let cut = fresh.basis.as_ref().unwrap().0.clone();
+                let geometry = Geometry {
+                    affine: &affine,
+                    fractions: None,
+                };
+                let searcher = Searcher {
+                    metric: limits.metric,
+                    geometry,
+                };
                 let mut g = Graph::new(&vol, cases(conn));
+                let (_, taken) = first_loop(&mut g, &mut cache, &searcher, &cut, false, limits);
+                assert!(taken, "the kept Q1 still crosses P once");
                 let again = measure(&mut g, &mut cache, h, conn, &affine, limits);
                 assert_eq!(loops(&again), loops(&fresh));
                 kept += 1;
@@ -1999,9 +2010,12 @@ mod tests {
                     }
                 }
                 let mut g = Graph::new(&edited, cases(conn));
-                if crossing_parity(&mut g, &q1, &fresh.basis.as_ref().unwrap().0) == Some(1) {
+                if crossing_parity(&mut g, &q1, &cut) == Some(1) {
                     continue;
                 }
+                let (_, taken) = first_loop(&mut g, &mut cache, &searcher, &cut, false, limits);
+                assert!(!taken, "a broken Q1 taken again");
+                cache.ribbon_start = Some((cut.clone(), q1.clone()));
                 let with_kept = measure(&mut g, &mut cache, h, conn, &affine, limits);
                 let mut g = Graph::new(&edited, cases(conn));
                 let mut empty = SliceCache::new(conn);
@@ -2017,8 +2031,9 @@ mod tests {
     /// pair is refined from any loop crossing its cross loop, not the shortest. The two loops
     /// cross once, the refinement ends with one of them the shortest crossing the other within
     /// the swept part of the surface (no loop there crossing the Reeb loop is shorter than the
-    /// cross loop, or none crossing the cross loop is shorter than the Reeb loop), and the Reeb
-    /// loop lies there (it does not drift onto a handle above the sweep).
+    /// cross loop, or none crossing the cross loop is shorter than the Reeb loop), the Reeb
+    /// loop lies there (it does not drift onto a handle above the sweep), and the measurement
+    /// is not said to be exact.
     #[test]
     fn an_intra_ribbon_pair_refined_from_any_loop_ends_locally_shortest() {
         let limits = Limits {
@@ -2052,6 +2067,9 @@ mod tests {
                         r.found.is_some()
                     };
                     assert_eq!(crossing_parity(&mut g, a, b), Some(1), "n {n} {conn:?}");
+                    // Refined from a loop that is not the shortest crossing `Q1`: not exact,
+                    // so not kept from pass to pass as if it were.
+                    assert!(!l.exact, "n {n} {conn:?}: handle at {at:?} said exact");
                     let s = h.located.ribbon.unwrap().0;
                     let inside = |x: &[Vertex]| x.iter().all(|v| v.p[2] <= s + 1);
                     assert!(inside(a), "n {n} {conn:?}: Reeb loop above slice {s}");
