@@ -4,7 +4,7 @@ Simplification" (2002), on the real volumes of ../shared/data, with reference to
 same run and an out-of-core row.
 
     python3 bench/bench_table1.py [volume names...] [--tau T] [--repeat N] [--big | --no-big]
-                                  [--json FILE] [--keep DIR]
+                                  [--noise SIDES] [--json FILE] [--keep DIR]
 
     volume names   files of ../shared/data (isovalues from scripts/common.py REAL); default
                    buddha-sdf.nii.gz cranium-ct.nii.gz mni2009a-gm.nii.gz freesurfer-wm.mgz
@@ -13,6 +13,8 @@ same run and an out-of-core row.
     --repeat N     genus and VTK extraction, the two fast passes compared, are timed best of N (3);
                    every other stage runs once
     --big          out-of-core row (default: on when bunny-ct.nii.gz is among the volumes)
+    --noise SIDES  sides of the generated noise cubes of table 2c, comma-separated (default 128:
+                   53,546 handles; 0: none)
     --json FILE    write every number below (and the paper's rows) as JSON
     --keep DIR     work in DIR and keep the files (uncompressed inputs, outputs, reports)
 
@@ -37,6 +39,10 @@ resident memory from /usr/bin/time -v; CPU = user + system seconds, isotopo is m
                        them are intra-ribbon; where simplify's time went (report seconds_stages).
   2b. Every handle     simplify --tau inf (wall s, MiB, samples changed, ms per removed handle
       removed          beyond the genus pass) and --spherical (the same, and b0/b1/b2 after).
+  2c. Noise           simplify --tau inf on generated noise (bench_analyze.py's: Gaussian-smoothed
+                       white noise thresholded at 0, about 26 handles per 1,000 voxels), with one
+                       thread (RAYON_NUM_THREADS=1) and with all: wall s, peak MiB, ms per removed
+                       handle beyond the genus pass, and the speed-up of all threads over one.
   3. Reference tools   VTK FE s and triangles; skimage s and its b1; genus/FE = isotopo genus wall
                        time / VTK FE time (< 1: the whole isotopo run, reading included, beats VTK's
                        extraction alone); skimage/genus = skimage time / isotopo genus time.
@@ -272,6 +278,38 @@ def bench_volume(name, tau, repeat, work, notes):
     return row
 
 
+def bench_noise(sides, work):
+    """Table 2c: every handle of generated noise removed, with one thread and with all."""
+    from bench_analyze import noise_volume
+
+    rows = []
+    for side in sides:
+        nii = work / f"noise{side}.nii"
+        noise_volume(side, nii)
+        print(f"noise {side}^3: genus", end="", flush=True)
+        g = isotopo_stage("genus", nii, "--iso", 0, "--json", "-q", repeat=2)
+        row = {"side": side, "voxels": side**3, "genus": g["json"]["b1"], "genus_seconds": g["seconds"]}
+        for key, threads in (("one_thread", "1"), ("all_threads", None)):
+            print(f", simplify --tau inf ({key.replace('_', ' ')})", end="", flush=True)
+            env_before = os.environ.pop("RAYON_NUM_THREADS", None)
+            if threads is not None:
+                os.environ["RAYON_NUM_THREADS"] = threads
+            try:
+                s = simplify(nii, 0, "inf", work / f"noise{side}-{key}.nii", work / f"noise{side}-{key}.json")
+            finally:
+                os.environ.pop("RAYON_NUM_THREADS", None)
+                if env_before is not None:
+                    os.environ["RAYON_NUM_THREADS"] = env_before
+            r = s.pop("report")
+            removed = r["genus_before"] - r["genus_after"]
+            per = (s["seconds"] - row["genus_seconds"]) * 1000 / removed if removed else None
+            row[key] = {**s, "removed": removed, "genus_after": r["genus_after"], "ms_per_handle": per,
+                        "seconds_stages": r.get("seconds_stages")}
+        print(flush=True)
+        rows.append(row)
+    return rows
+
+
 def write_repeated_z(src_nii, header_from, dst, copies):
     """Writes dst: the volume of src_nii (uncompressed NIfTI) repeated `copies` times along z, with
     the header (affine, type, scaling) of header_from, streamed slab by slab."""
@@ -369,7 +407,20 @@ def bench_big(rows, tau, work, notes):
     return big
 
 
-def print_tables(rows, big, tau, notes):
+def print_noise(noise):
+    print("\n2c. Every handle of generated noise removed (one run each): simplify --tau inf with one thread and with")
+    print("    all; ms/handle = (simplify s - genus s) / handles removed\n")
+    hdr = ["volume", "voxels", "genus", "genus s", "1 thread s", "MiB", "ms/handle", "all threads s", "MiB", "ms/handle", "speed-up", "after"]
+    out = []
+    for r in noise:
+        one, every = r["one_thread"], r["all_threads"]
+        out.append([f"noise {r['side']}^3", f"{r['voxels']:,}", f"{r['genus']:,}", f(r["genus_seconds"], ".2f"), f(one["seconds"], ".1f"),
+                    f(one["peak_mib"], ".0f"), f(one["ms_per_handle"], ".2f"), f(every["seconds"], ".1f"), f(every["peak_mib"], ".0f"),
+                    f(every["ms_per_handle"], ".2f"), f(one["seconds"] / every["seconds"], ".2f"), every["genus_after"]])
+    print(table(hdr, out))
+
+
+def print_tables(rows, big, tau, notes, noise=()):
     print("\n1. Table 1 form (isotopo simplify, tau = %s voxel edges)\n" % tau)
     hdr = ["volume", "grid", "tau", "genus", "after", "(output)", "#intra", "#collapse", "#pinch", "samples", "wall s", "CPU s", "MiB"]
     out = []
@@ -402,6 +453,9 @@ def print_tables(rows, big, tau, notes):
         out.append([r["name"], r["genus"]["b1"], f(ti["seconds"], ".1f"), f(ti["peak_mib"], ".0f"), f"{ti['samples_changed']:,}", f(per, ".1f"),
                     f(sp["seconds"], ".1f"), f(sp["peak_mib"], ".0f"), f"{sp['samples_changed']:,}", tuple(sp["after"])])
     print(table(hdr, out))
+
+    if noise:
+        print_noise(noise)
 
     print("\n3. Reference tools (in process, volume already in memory)\n")
     hdr = ["volume", "type", "genus s", "b1", "VTK FE s", "triangles", "skimage s", "skimage b1", "genus/FE", "skimage/genus"]
@@ -465,6 +519,8 @@ def main(argv):
     ap.add_argument("--repeat", type=int, default=3, help="best of N for the genus pass and VTK extraction (default 3)")
     ap.add_argument("--big", action=argparse.BooleanOptionalAction, default=None,
                     help=f"out-of-core row: bunny 1x vs 4x along z (default: on when {BUNNY} is among the volumes)")
+    ap.add_argument("--noise", default="128", metavar="SIDES",
+                    help="sides of the noise cubes of table 2c, comma-separated (default 128; 0: none)")
     ap.add_argument("--json", metavar="FILE", help="write all the numbers as JSON")
     ap.add_argument("--keep", metavar="DIR", help="work in DIR and keep the generated files")
     args = ap.parse_args(argv)
@@ -497,11 +553,13 @@ def main(argv):
     try:
         rows = [bench_volume(n, args.tau, args.repeat, work, notes) for n in names]
         big = bench_big(rows, args.tau, work, notes) if big_on else None
+        sides = [int(x) for x in args.noise.split(",") if int(x) > 0]
+        noise = bench_noise(sides, work)
     finally:
         if cleanup is not None:
             cleanup.cleanup()
 
-    print_tables(rows, big, args.tau, notes)
+    print_tables(rows, big, args.tau, notes, noise)
     if args.keep:
         print(f"\nfiles kept in {work}")
     if args.json:
@@ -512,6 +570,7 @@ def main(argv):
             "cpus": os.cpu_count(),
             "volumes": rows,
             "big": big,
+            "noise": noise,
             "paper_table1": {"source": "Wood, Hoppe, Desbrun, Schröder 2002, Table 1; times in CPU minutes", "rows": PAPER},
             "notes": notes,
         }
