@@ -285,14 +285,17 @@ pub struct SliceCache {
 /// Undecided races a cache remembers (forgotten all at once beyond).
 const MAX_UNDECIDED: usize = 1 << 12;
 
-/// Vertices of the cheap loops a cache keeps (2 MiB; forgotten all at once beyond).
-const MAX_CHEAP_VERTICES: usize = 1 << 18;
+/// Vertices of the cheap loops a cache keeps (8 MiB; forgotten all at once beyond).
+const MAX_CHEAP_VERTICES: usize = 1 << 20;
 
 /// Vertices of the contours a cache keeps walked (about 4 MiB; forgotten all at once beyond).
 const MAX_CONTOUR_VERTICES: usize = 1 << 18;
 
 /// Memory the slices of a cache may take between handles (one handle's cycle may need more).
-const SLICE_CACHE_BYTES: usize = 24 << 20;
+/// A walk round a tall cycle ensures each of its slices in turn: with too few kept, every walk
+/// builds them all again (128³ noise at tau inf with 24 MiB: a fifth of the run rebuilding
+/// slices' surfels; 48 MiB: 359 -> 232 s, peak 630 -> 640 MiB).
+const SLICE_CACHE_BYTES: usize = 48 << 20;
 
 /// Approximate heap size of a slice's surfels.
 fn slice_bytes(s: &SliceSurfels) -> usize {
