@@ -391,6 +391,23 @@ impl SliceCache {
         Some(keys)
     }
 
+    /// The cheap loop kept for the cut of key `key` (see [`cheap_odd_loop`]).
+    fn kept_cheap(&self, key: u64) -> Option<Vec<Vertex>> {
+        let keys = self.cheap.get(&key)?;
+        Some(keys.iter().map(|&k| Vertex::from_key(k)).collect())
+    }
+
+    /// Keeps a cheap loop for the cut of key `key`, in place of any kept before.
+    fn keep_cheap(&mut self, key: u64, lp: &[Vertex]) {
+        if self.cheap_vertices + lp.len() > MAX_CHEAP_VERTICES {
+            self.cheap.clear();
+            self.cheap_vertices = 0;
+        }
+        self.cheap_vertices += lp.len();
+        let old = self.cheap.insert(key, lp.iter().map(Vertex::key).collect());
+        self.cheap_vertices -= old.map_or(0, |o| o.len());
+    }
+
     /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there), and the
     /// contours of the planes whose cubes those slices hold.
     pub fn invalidate(&mut self, w0: i64, w1: i64) {
@@ -804,22 +821,13 @@ fn cheap_odd_loop(
     // round several cycles may share a cut (the embryo: one contour of 192 vertices, the cut
     // of cycles of 16 to 56 nodes); a loop round any of them crosses the cut once.
     let key = cut_key(curve);
-    if let Some(keys) = cache.cheap.get(&key) {
-        let kept: Vec<Vertex> = keys.iter().map(|&k| Vertex::from_key(k)).collect();
+    if let Some(kept) = cache.kept_cheap(key) {
         if let Some(lp) = mend_walk(top, &kept).and_then(|w| odd_simple_loop(top, curve, w)) {
             return Some(lp);
         }
     }
     let found = some_odd_loop(top, cache, h, curve)?;
-    if cache.cheap_vertices + found.len() > MAX_CHEAP_VERTICES {
-        cache.cheap.clear();
-        cache.cheap_vertices = 0;
-    }
-    cache.cheap_vertices += found.len();
-    let old = cache
-        .cheap
-        .insert(key, found.iter().map(Vertex::key).collect());
-    cache.cheap_vertices -= old.map_or(0, |o| o.len());
+    cache.keep_cheap(key, &found);
     Some(found)
 }
 
@@ -1694,7 +1702,7 @@ mod tests {
     ///
     /// ```text
     ///   y                 the loop: the ring's outer contour in plane z = 5
-    ///   ^  +---------+    the bump: samples x = 12, y = 7 ..= 9, z = 4 ..= 6
+    ///   ^  +---------+    the bump: samples x = 14, y = 7 ..= 9, z = 4 ..= 6
     ///   |  |  +---+  |#
     ///   |  |  |   |  |#
     ///   |  +--+---+--+
