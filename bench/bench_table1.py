@@ -530,6 +530,10 @@ def main(argv):
             ap.error(f"unknown volume {n!r}: one of {', '.join(REAL)}")
         if not (SHARED / n).exists():
             ap.error(f"{SHARED / n} not found (see ../shared/data/README.md)")
+    try:
+        sides = [int(x) for x in args.noise.split(",") if int(x) > 0]
+    except ValueError:
+        ap.error(f"--noise takes sides separated by commas, not {args.noise!r}")
     big_on = args.big if args.big is not None else BUNNY in names
     if big_on and not (SHARED / BUNNY).exists():
         ap.error(f"--big needs {SHARED / BUNNY}")
@@ -553,7 +557,6 @@ def main(argv):
     try:
         rows = [bench_volume(n, args.tau, args.repeat, work, notes) for n in names]
         big = bench_big(rows, args.tau, work, notes) if big_on else None
-        sides = [int(x) for x in args.noise.split(",") if int(x) > 0]
         noise = bench_noise(sides, work)
     finally:
         if cleanup is not None:
