@@ -411,7 +411,15 @@ impl SliceCache {
     /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there), and the
     /// contours of the planes whose cubes those slices hold.
     pub fn invalidate(&mut self, w0: i64, w1: i64) {
-        self.contours.retain(|&(w, _), _| w + 1 < w0 || w > w1 + 1);
+        let mut forgotten = 0;
+        self.contours.retain(|&(w, _), c| {
+            let keep = w + 1 < w0 || w > w1 + 1;
+            if !keep {
+                forgotten += c.len();
+            }
+            keep
+        });
+        self.contour_vertices -= forgotten;
         let mut freed = 0;
         self.slices.retain(|&s, (sl, _)| {
             let keep = s + 1 < w0 || s > w1;
@@ -1618,52 +1626,68 @@ mod tests {
     /// Without a partner loop, the side a loop spans is read off its fan: round a bar of
     /// 3 × 3 samples, material; round a hole of the same size through a block, void; the
     /// same loop at any height of the bar and with its vertices in either order.
+    ///
+    /// A loop wider than the bar (or the hole) it goes round spans both sides: the fan's inner
+    /// part (within 0.56 of the way to the loop) reaches a voxel beyond the bar, and the side
+    /// that holds most of it wins. Square loop from 1.5 to 9.5 round a bar of 4..=7: the fan's
+    /// points reach 3.25 and 7.75, so the rows 3 and 8 of its samples are outside.
+    ///
+    /// ```text
+    ///   1.5          9.5
+    ///    +-----------+      loop (edge midpoints)
+    ///    |  .......  |      . fan samples outside the bar (rows 3 and 8): under half
+    ///    |  :#####:  |      # the bar (4..=7): most of them
+    ///    |  :#####:  |
+    ///    |  .......  |
+    ///    +-----------+
+    /// ```
     #[test]
     fn a_fan_spans_the_bar_it_goes_round_or_the_hole() {
-        let ring = |z: i64| -> Vec<Vertex> {
+        // The square loop of edge midpoints from lo + 0.5 to hi + 0.5, corners left out.
+        let ring = |lo: i64, hi: i64, z: i64| -> Vec<Vertex> {
             let mut lp = Vec::new();
-            lp.extend((4..=6).map(|y| Vertex {
-                p: [3, y, z],
+            lp.extend((lo + 1..=hi).map(|y| Vertex {
+                p: [lo, y, z],
                 axis: 0,
             }));
-            lp.extend((4..=6).map(|x| Vertex {
-                p: [x, 6, z],
+            lp.extend((lo + 1..=hi).map(|x| Vertex {
+                p: [x, hi, z],
                 axis: 1,
             }));
-            lp.extend((4..=6).rev().map(|y| Vertex {
-                p: [6, y, z],
+            lp.extend((lo + 1..=hi).rev().map(|y| Vertex {
+                p: [hi, y, z],
                 axis: 0,
             }));
-            lp.extend((4..=6).rev().map(|x| Vertex {
-                p: [x, 3, z],
+            lp.extend((lo + 1..=hi).rev().map(|x| Vertex {
+                p: [x, lo, z],
                 axis: 1,
             }));
             lp
         };
-        for hole in [false, true] {
-            let mut vol = MaskVolume::new([11, 11, 5], Frame::identity());
-            for z in 0..5 {
-                for y in 0..11 {
-                    for x in 0..11 {
-                        let in_bar = (4..=6).contains(&x) && (4..=6).contains(&y);
-                        vol.set(x, y, z, in_bar != hole);
+        // (bar from, bar to, loop lo, loop hi): the loop on the bar's surface, then wider.
+        for (from, to, lo, hi) in [(4, 6, 3, 6), (4, 7, 1, 9)] {
+            for hole in [false, true] {
+                let mut vol = MaskVolume::new([11, 11, 5], Frame::identity());
+                for z in 0..5 {
+                    for y in 0..11 {
+                        for x in 0..11 {
+                            let in_bar = (from..=to).contains(&x) && (from..=to).contains(&y);
+                            vol.set(x, y, z, in_bar != hole);
+                        }
                     }
                 }
-            }
-            let want = if hole {
-                Encloses::Void
-            } else {
-                Encloses::Material
-            };
-            for z in 0..5 {
-                let mut lp = ring(z);
-                assert_eq!(encloses_by_fan(&vol, &lp), want, "hole {hole}, z {z}");
-                lp.reverse();
-                assert_eq!(
-                    encloses_by_fan(&vol, &lp),
-                    want,
-                    "hole {hole}, z {z}, reversed"
-                );
+                let want = if hole {
+                    Encloses::Void
+                } else {
+                    Encloses::Material
+                };
+                for z in 0..5 {
+                    let mut lp = ring(lo, hi, z);
+                    let at = format!("bar {from}..={to}, loop {lo}..{hi}, hole {hole}, z {z}");
+                    assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}");
+                    lp.reverse();
+                    assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}, reversed");
+                }
             }
         }
     }
@@ -1774,6 +1798,8 @@ mod tests {
 
     /// Slices cached before an edit are built again once `invalidate` names the planes
     /// edited: the cache then serves the edited surface, slice for slice as a fresh build.
+    /// The contours of the planes the forgotten slices hold are forgotten too, and only they
+    /// (with their vertices' count).
     #[test]
     fn an_invalidated_cache_serves_the_edited_slices() {
         let conn = Connectivity::Six;
@@ -1782,6 +1808,21 @@ mod tests {
         for s in 0..15 {
             cache.ensure(&vol, s);
         }
+        // A contour of every plane, from an edge along x that crosses the surface.
+        let mut g = Graph::new(&vol, cases(conn));
+        for w in 0..16 {
+            let crossing = (0..15 * 16)
+                .map(|k| [k % 15, k / 15, w])
+                .find(|&[x, y, z]| vol.get(x, y, z) != vol.get(x + 1, y, z));
+            let Some(p) = crossing else { continue };
+            cache.contour(&mut g, Vertex { p, axis: 0 }, w).unwrap();
+        }
+        let planes = |cache: &SliceCache| -> std::collections::BTreeSet<i64> {
+            cache.contours.keys().map(|&(w, _)| w).collect()
+        };
+        assert!(planes(&cache).len() > 10, "{:?}", planes(&cache));
+        let mut kept = planes(&cache);
+        kept.retain(|w| !(5..=9).contains(w));
         // Planes 6 ..= 8 edited: slices 5 ..= 8 hold them.
         for z in 6..=8 {
             for y in 5..=7 {
@@ -1792,6 +1833,13 @@ mod tests {
             }
         }
         cache.invalidate(6, 8);
+        assert_eq!(
+            planes(&cache),
+            kept,
+            "the contours of planes 5 ..= 9 forgotten"
+        );
+        let vertices: usize = cache.contours.values().map(|c| c.len()).sum();
+        assert_eq!(cache.contour_vertices, vertices);
         let cubes = |sl: &SliceSurfels| -> Vec<(u32, u32, u8)> {
             sl.cubes.iter().map(|c| (c.i, c.j, c.case)).collect()
         };
@@ -1934,6 +1982,10 @@ mod tests {
                 let hi: [i64; 3] =
                     std::array::from_fn(|k| first.iter().map(|v| v.p[k]).max().unwrap() + 2);
                 let (lo, hi) = ([lo[0], lo[1], s], [hi[0], hi[1], s]);
+                // A box round the whole slice holds all of the ribbon's generators.
+                let whole = ([-1, -1, s], [24, 24, s]);
+                let within = ribbon_generators_within(&mut g, &mut cache, s, r, Some(whole));
+                assert_eq!(within.as_ref(), Some(&all), "slice {s} ribbon {r}");
                 let near = ribbon_generators_within(&mut g, &mut cache, s, r, Some((lo, hi)));
                 let near = near.unwrap_or_default();
                 for v in near.iter().flatten() {
@@ -1952,6 +2004,56 @@ mod tests {
             found * 2 > ribbons,
             "{found} of {ribbons} boxes hold generators"
         );
+    }
+
+    /// The loop chained round a top-level handle's Reeb cycle (ribbon by ribbon, then along the
+    /// cut) is found for every such handle of random sponges, is simple and crosses the cut
+    /// once.
+    #[test]
+    fn a_chained_loop_goes_once_round_every_top_level_cycle() {
+        let conn = Connectivity::Six;
+        // Square rings standing across the sweep, of tubes 1 to 3 voxels thick: a path along
+        // a flat side comes back to the vertex of the cut it left from.
+        let ring = |w: usize| {
+            let mut vol = MaskVolume::new([14, 8, 14], Frame::identity());
+            for (x, y, z) in (0..14 * 8 * 14).map(|k| (k % 14, (k / 14) % 8, k / 112)) {
+                let outer = (2..12).contains(&x) && (2..12).contains(&z);
+                let hole = (2 + w..12 - w).contains(&x) && (2 + w..12 - w).contains(&z);
+                vol.set(x, y, z, outer && !hole && (2..2 + w).contains(&y));
+            }
+            vol
+        };
+        let volumes = (1..=3)
+            .map(ring)
+            .chain((0..3u64).map(|seed| sponge(24, 0x9e37_79b9_7f4a_7c15 ^ seed)));
+        let mut chained = 0;
+        for mut vol in volumes {
+            let progress = crate::progress::NoProgress;
+            let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
+                .unwrap();
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            for h in &r.handles {
+                let l = &h.located;
+                let (n, m) = (l.cycle.len(), l.cut.len());
+                let eligible = matches!(l.volume, CycleVolume::Top)
+                    && m >= 2
+                    && n >= 4
+                    && n.is_multiple_of(2)
+                    && l.contour_starts.len() == n
+                    && l.cycle[l.cut_at].kind == NodeKind::Contour;
+                if !eligible {
+                    continue;
+                }
+                let lp = chained_reeb_loop(&mut g, &mut cache, h);
+                let lp = lp.unwrap_or_else(|| panic!("no chained loop round a cycle of {n}"));
+                assert_eq!(crossing_parity(&mut g, &lp, &l.cut), Some(1));
+                let distinct: std::collections::HashSet<Vertex> = lp.iter().copied().collect();
+                assert_eq!(distinct.len(), lp.len(), "not simple");
+                chained += 1;
+            }
+        }
+        assert!(chained > 20, "{chained} chained");
     }
 
     /// The `Q1` kept for the next intra-ribbon handle with the same `P` (see `first_loop`) is
