@@ -458,3 +458,51 @@ fn the_streamed_analysis_is_the_analysis() {
         "no volume with more handles than a batch ({most})"
     );
 }
+
+/// Every stage a job announces, with the total it announced and the steps it then reported.
+#[derive(Default)]
+struct Stages(std::sync::Mutex<Vec<(String, u64, u64)>>);
+
+impl isotopo::progress::Progress for Stages {
+    fn start(&self, stage: &str, total: u64) {
+        self.0.lock().unwrap().push((stage.to_string(), total, 0));
+    }
+    fn advance(&self, n: u64) {
+        let mut stages = self.0.lock().unwrap();
+        let last = stages.last_mut().expect("a step before any stage started");
+        last.2 += n;
+    }
+}
+
+/// A progress bar fills exactly once per stage: each job announces its stages once each, in
+/// pipeline order, and reports as many steps in a stage as the total it announced (the sweep:
+/// one a slice and one to close; the mini-volumes swept for intra-ribbon handles announce
+/// nothing of their own).
+#[test]
+fn each_stage_reports_the_steps_it_announced() {
+    let (vol, iso) = noise(7);
+    let surface = SurfaceOptions {
+        iso,
+        ..SurfaceOptions::default()
+    };
+    let analyze = isotopo::AnalyzeOptions {
+        surface,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    let src = || Source::from(vol.clone());
+    let nz = vol.dims()[2] as u64;
+    let stages = Stages::default();
+    let handles = isotopo::analyze(src(), &analyze, &stages)
+        .unwrap()
+        .report
+        .handles;
+    let seen = stages.0.into_inner().unwrap();
+    let names: Vec<&str> = seen.iter().map(|s| s.0.as_str()).collect();
+    assert_eq!(names, ["classify", "sweep", "loops"], "{seen:?}");
+    assert_eq!(seen[1].1, nz + 1, "{seen:?}");
+    assert!(handles.len() > 5, "{} handles", handles.len());
+    assert_eq!(seen[2].1, handles.len() as u64, "{seen:?}");
+    for (stage, total, done) in &seen {
+        assert_eq!(done, total, "{stage}");
+    }
+}
