@@ -279,7 +279,10 @@ pub struct SliceCache {
     cheap_vertices: usize,
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
+    /// Heap bytes of the slices kept, and how many they may take between handles (see
+    /// [`SLICE_CACHE_BYTES`]).
     bytes: usize,
+    budget: usize,
 }
 
 /// Undecided races a cache remembers (forgotten all at once beyond).
@@ -320,6 +323,7 @@ impl SliceCache {
             cheap_vertices: 0,
             clock: 0,
             bytes: 0,
+            budget: SLICE_CACHE_BYTES,
         }
     }
 
@@ -354,13 +358,13 @@ impl SliceCache {
 
     /// Between handles: forgets the least recently used slices beyond the budget.
     fn trim(&mut self) {
-        if self.bytes <= SLICE_CACHE_BYTES {
+        if self.bytes <= self.budget {
             return;
         }
         let mut by_age: Vec<(u64, i64)> = self.slices.iter().map(|(&s, (_, t))| (*t, s)).collect();
         by_age.sort_unstable();
         for (_, s) in by_age {
-            if self.bytes <= SLICE_CACHE_BYTES / 2 {
+            if self.bytes <= self.budget / 2 {
                 break;
             }
             if let Some((sl, _)) = self.slices.remove(&s) {
@@ -1796,6 +1800,39 @@ mod tests {
         assert_eq!(mend_walk(&mut Graph::new(&none, cases(conn)), &kept), None);
     }
 
+    /// Past its budget the cache forgets the least recently used slices down to half of it,
+    /// and counts the bytes of exactly the slices it keeps: a sponge's slices ensured in turn,
+    /// with slice 0 used again after each, under a budget of about four slices.
+    #[test]
+    fn a_trimmed_cache_keeps_the_recent_slices_within_its_budget() {
+        let conn = Connectivity::Six;
+        let vol = sponge(16, 0x2545_f491_4f6c_dd1d);
+        let mut cache = SliceCache::new(conn);
+        let one = slice_bytes(&SliceSurfels::build(vol.plane(7), vol.plane(8), 7, conn));
+        cache.budget = 4 * one;
+        let mut trimmed = 0;
+        for s in 1..15 {
+            cache.ensure(&vol, s);
+            cache.ensure(&vol, 0);
+            let before = cache.slices.len();
+            cache.trim();
+            trimmed += usize::from(cache.slices.len() < before);
+            let held: usize = cache.slices.values().map(|(sl, _)| slice_bytes(sl)).sum();
+            assert_eq!(cache.bytes, held, "after slice {s}");
+            assert!(
+                cache.bytes <= cache.budget,
+                "after slice {s}: {} bytes",
+                cache.bytes
+            );
+            assert!(cache.slices.contains_key(&0) && cache.slices.contains_key(&s));
+            // What is kept is what was used last: slice 0, then the latest ones.
+            let mut kept: Vec<i64> = cache.slices.keys().copied().filter(|&k| k > 0).collect();
+            kept.sort_unstable();
+            assert_eq!(kept, (s + 1 - kept.len() as i64..=s).collect::<Vec<_>>());
+        }
+        assert!(trimmed > 3, "trimmed {trimmed} times");
+    }
+
     /// Slices cached before an edit are built again once `invalidate` names the planes
     /// edited: the cache then serves the edited surface, slice for slice as a fresh build.
     /// The contours of the planes the forgotten slices hold are forgotten too, and only they
@@ -2193,6 +2230,58 @@ mod tests {
             }
         }
         assert!(kept > 20 && broken > 20, "{kept} kept, {broken} broken");
+    }
+
+    /// With a limit (analyze, simplify at a finite tau) an intra-ribbon handle's pair is not
+    /// refined: the cross loop `Q1` is the shortest crossing the cut `P`, and the Reeb loop is
+    /// the shorter of `P` and `Q2`, the shortest crossing `Q1`; so when the searches are exact,
+    /// no loop crossing the cross loop is shorter than the Reeb loop.
+    #[test]
+    fn an_intra_ribbon_reeb_loop_is_the_shortest_crossing_its_cross_loop() {
+        let limits = Limits {
+            below: 1000.0,
+            ..Limits::NONE
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let (mut checked, mut not_the_cut) = (0, 0);
+        for (round, n) in [24usize, 32].into_iter().enumerate() {
+            for conn in [Connectivity::Six, Connectivity::TwentySix] {
+                let mut vol = sponge(n, 0x2545_f491_4f6c_dd1d ^ round as u64);
+                let progress = crate::progress::NoProgress;
+                let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
+                    .unwrap();
+                let mut g = Graph::new(&vol, cases(conn));
+                let mut cache = SliceCache::new(conn);
+                for h in &r.handles {
+                    if !matches!(h.located.volume, CycleVolume::Mini(_)) {
+                        continue;
+                    }
+                    let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
+                    let (Some(a), Some(b), true) = (&l.reeb, &l.cross, l.exact) else {
+                        continue;
+                    };
+                    let (a, b) = (&a.vertices, &b.vertices);
+                    let within = refined_within(h, limits);
+                    let shorter = odd_loop(&mut g, b, &within, a.len());
+                    assert!(shorter.exact);
+                    let at = h.located.bbox;
+                    assert!(
+                        shorter.found.is_none(),
+                        "n {n} {conn:?}: handle at {at:?}: Reeb loop of {}, one of {} crosses \
+                         the cross loop",
+                        a.len(),
+                        shorter.found.map_or(0, |x| x.len())
+                    );
+                    checked += 1;
+                    let cut = &l.basis.as_ref().unwrap().0;
+                    not_the_cut += usize::from(a.len() < cut.len());
+                }
+            }
+        }
+        assert!(
+            checked > 200 && not_the_cut > 20,
+            "{checked} checked, {not_the_cut} not P"
+        );
     }
 
     /// With no limit and only the size wanted (simplify at tau inf), an intra-ribbon handle's
