@@ -1800,6 +1800,22 @@ mod tests {
         assert_eq!(mend_walk(&mut Graph::new(&none, cases(conn)), &kept), None);
     }
 
+    /// A slice's bytes as the cache counts them hold at least its surfels' elements.
+    #[test]
+    fn a_slices_bytes_cover_its_surfels() {
+        let conn = Connectivity::Six;
+        let vol = sponge(16, 0x2545_f491_4f6c_dd1d);
+        for s in 0..15 {
+            let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+            let elements = sl.cubes.len() * std::mem::size_of::<crate::topology::slice::Cube>()
+                + sl.piece_ribbon.len() * 4
+                + (sl.bottom.len() + sl.top.len() + sl.row_start.len()) * 4
+                + sl.ribbons.len() * std::mem::size_of::<crate::topology::slice::Ribbon>();
+            assert!(slice_bytes(&sl) >= elements, "slice {s}");
+            assert!(s == 0 || !sl.cubes.is_empty());
+        }
+    }
+
     /// Past its budget the cache forgets the least recently used slices down to half of it,
     /// and counts the bytes of exactly the slices it keeps: a sponge's slices ensured in turn,
     /// with slice 0 used again after each, under a budget of about four slices.

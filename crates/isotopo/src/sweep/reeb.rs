@@ -272,6 +272,41 @@ impl ReebGraph {
 mod tests {
     use super::*;
 
+    /// Without path compression, finds walk up the tree: union by size keeps every tree's
+    /// depth within log2 of its size, however the unions come (here each new element joined
+    /// to the one big set, then pairs of sets of equal size).
+    #[test]
+    fn unions_by_size_keep_the_trees_shallow() {
+        let depth = |uf: &RollbackUnionFind, mut x: u32| {
+            let mut d = 0;
+            while uf.parent[x as usize] != x {
+                x = uf.parent[x as usize];
+                d += 1;
+            }
+            d
+        };
+        let mut chain = RollbackUnionFind::default();
+        chain.push();
+        for i in 1..1024 {
+            chain.push();
+            assert!(chain.union(i, 0));
+        }
+        assert!((0..1024).all(|x| depth(&chain, x) <= 1));
+        let mut pairs = RollbackUnionFind::default();
+        for _ in 0..1024 {
+            pairs.push();
+        }
+        let mut step = 1u32;
+        while step < 1024 {
+            for i in (0..1024u32).step_by(2 * step as usize) {
+                assert!(pairs.union(i + step, i));
+            }
+            step *= 2;
+        }
+        assert!((0..1024).all(|x| depth(&pairs, x) <= 10));
+        assert_eq!(pairs.find(1023), pairs.find(0));
+    }
+
     #[test]
     fn rollback_restores_components() {
         let mut uf = RollbackUnionFind::default();
