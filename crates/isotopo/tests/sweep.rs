@@ -330,3 +330,39 @@ fn a_sweep_without_rewind_finds_the_same_and_refuses_to_rewind() {
         assert!(without.rewind(&masks, 3).is_err());
     }
 }
+
+/// A handle's box is the box of the cubes its cycle passes through (lower corners, original
+/// coordinates): a square ring standing across the sweep, its tube w × w samples (x and z in
+/// 2 ..= 11, y in 2 .. 2 + w), has one Reeb cycle through both arms, so its box spans the
+/// cubes 1 ..= 11 across the ring and 1 ..= 1 + w through it, along every axis that crosses
+/// the ring's plane.
+#[test]
+fn a_ring_handles_box_is_the_box_of_its_cubes() {
+    for w in 1..=3usize {
+        let vol = InMemoryVolume::from_fn([14, 8, 14], |x, y, z| {
+            let outer = (2..12).contains(&x) && (2..12).contains(&z);
+            let hole = (2 + w..12 - w).contains(&x) && (2 + w..12 - w).contains(&z);
+            if outer && !hole && (2..2 + w).contains(&y) {
+                1.0
+            } else {
+                -1.0
+            }
+        });
+        for conn in BOTH {
+            for axis in [Axis::X, Axis::Z] {
+                let r = check(&vol, 0.0, conn, axis, "standing ring").unwrap();
+                assert_eq!(r.handles.len(), 1);
+                let h = &r.handles[0].located;
+                assert_eq!(h.kind, HandleKind::ReebCycle);
+                let across = if axis == Axis::X { 0 } else { 2 };
+                let at = format!("tube {w}, {conn:?}, along {}", axis.name());
+                // The arms reach across the ring; the cycle runs from the one to the other.
+                assert_eq!(h.bbox.min[2 - across], 1, "{at}: {:?}", h.bbox);
+                assert_eq!(h.bbox.max[2 - across], 11, "{at}: {:?}", h.bbox);
+                assert_eq!(h.bbox.min[1], 1, "{at}: {:?}", h.bbox);
+                assert_eq!(h.bbox.max[1], 1 + w as i64, "{at}: {:?}", h.bbox);
+                assert!(h.bbox.min[across] >= 1 && h.bbox.max[across] <= 11, "{at}");
+            }
+        }
+    }
+}
