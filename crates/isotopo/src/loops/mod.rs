@@ -1913,8 +1913,8 @@ mod tests {
 
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
     /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
-    /// of the axes does not change it; a triangle closes along its diagonal; one point alone
-    /// has no length.
+    /// of the axes does not change it; stood up with its long side along z, 2 × (3 + 4) mm; a
+    /// triangle closes along its diagonal; one point alone has no length.
     #[test]
     fn polyline_lengths_close_the_loop_in_millimetres() {
         let rect = [
@@ -1931,6 +1931,9 @@ mod tests {
             [0.0; 3],
         );
         assert!((polyline_mm(&rect, &turned) - 11.0).abs() < 1e-12);
+        // The same rectangle stood up in the y-z plane: 3 voxels along z (1 mm), 2 along y.
+        let standing = rect.map(|[x, y, _]| [0.0, y, x]);
+        assert!((polyline_mm(&standing, &spacing) - 14.0).abs() < 1e-12);
         // Three points: the closing edge is the diagonal, 1.5 mm by 4 mm.
         let diagonal = (1.5f64 * 1.5 + 4.0 * 4.0).sqrt();
         assert!((polyline_mm(&rect[..3], &spacing) - (1.5 + 4.0 + diagonal)).abs() < 1e-12);
