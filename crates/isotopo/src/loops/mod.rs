@@ -759,20 +759,7 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
     let vol = top.vol;
     let b = &h.located.bbox;
     let centre: [f64; 3] = std::array::from_fn(|k| (b.min[k] + b.max[k]) as f64 / 2.0 + 0.5);
-    let distance = |lp: &Vec<Vertex>| {
-        lp.iter()
-            .map(|v| {
-                let p = vol.frame.to_original(v.midpoint());
-                (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum::<f64>()
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
-    let nearest = |cycles: Vec<Vec<Vertex>>| {
-        cycles
-            .into_iter()
-            .filter(|c| c.len() >= 3)
-            .min_by(|a, b| distance(a).total_cmp(&distance(b)))
-    };
+    let nearest = |cycles: Vec<Vec<Vertex>>| nearest_loop(&vol.frame, centre, cycles);
     // An empty box (none in practice) goes straight to the whole ribbon.
     let near = (b.min[0] <= b.max[0]).then(|| vol.frame.to_local_box(b));
     let margins = if near.is_some() {
@@ -796,6 +783,23 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
         }
     }
     nearest(ribbon_generators(top, cache, slice, ribbon)?)
+}
+
+/// Of `cycles` (local coordinates), the one with a vertex nearest to `centre` (original
+/// coordinates); cycles of fewer than 3 vertices are not loops.
+fn nearest_loop(frame: &Frame, centre: [f64; 3], cycles: Vec<Vec<Vertex>>) -> Option<Vec<Vertex>> {
+    let distance = |lp: &Vec<Vertex>| {
+        lp.iter()
+            .map(|v| {
+                let p = frame.to_original(v.midpoint());
+                (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum::<f64>()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    cycles
+        .into_iter()
+        .filter(|c| c.len() >= 3)
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
 }
 
 /// Margins (voxels) round an intra-ribbon handle's box in which [`ribbon_loop`] looks first.
@@ -1814,6 +1818,38 @@ mod tests {
             assert!(slice_bytes(&sl) >= elements, "slice {s}");
             assert!(s == 0 || !sl.cubes.is_empty());
         }
+    }
+
+    /// The generator taken for an intra-ribbon handle is the one that comes nearest its
+    /// centre, in original coordinates: of a square round (20, 20, 5) and one round (4, 4, 5),
+    /// nearer the origin, the first for a centre at (18, 18, 5) and the second for (6, 6, 5);
+    /// two vertices are no loop.
+    #[test]
+    fn the_nearest_generator_is_the_one_nearest_the_centre() {
+        let square = |c: i64| -> Vec<Vertex> {
+            [[c - 1, c, 5], [c, c + 1, 5], [c + 1, c, 5], [c, c - 1, 5]]
+                .map(|p| Vertex { p, axis: 2 })
+                .to_vec()
+        };
+        let (far, near) = (square(20), square(4));
+        let frame = Frame::identity();
+        let pick = |frame: &Frame, centre, cycles: &[&Vec<Vertex>]| {
+            nearest_loop(frame, centre, cycles.iter().map(|c| (*c).clone()).collect())
+        };
+        assert_eq!(
+            pick(&frame, [18.0, 18.0, 5.0], &[&near, &far]).as_ref(),
+            Some(&far)
+        );
+        assert_eq!(
+            pick(&frame, [6.0, 6.0, 5.0], &[&far, &near]).as_ref(),
+            Some(&near)
+        );
+        let pair = square(19)[..2].to_vec();
+        assert_eq!(
+            pick(&frame, [19.0, 19.0, 5.0], &[&pair, &near]).as_ref(),
+            Some(&near)
+        );
+        assert_eq!(pick(&frame, [0.0; 3], &[&pair]), None);
     }
 
     /// Past its budget the cache forgets the least recently used slices down to half of it,
