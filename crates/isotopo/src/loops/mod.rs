@@ -1804,19 +1804,27 @@ mod tests {
         assert_eq!(mend_walk(&mut Graph::new(&none, cases(conn)), &kept), None);
     }
 
-    /// A slice's bytes as the cache counts them hold at least its surfels' elements.
+    /// A slice's bytes as the cache counts them hold at least its surfels' elements, and
+    /// exactly those once the vectors hold no spare room.
     #[test]
     fn a_slices_bytes_cover_its_surfels() {
         let conn = Connectivity::Six;
         let vol = sponge(16, 0x2545_f491_4f6c_dd1d);
         for s in 0..15 {
-            let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+            let mut sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
             let elements = sl.cubes.len() * std::mem::size_of::<crate::topology::slice::Cube>()
                 + sl.piece_ribbon.len() * 4
                 + (sl.bottom.len() + sl.top.len() + sl.row_start.len()) * 4
                 + sl.ribbons.len() * std::mem::size_of::<crate::topology::slice::Ribbon>();
             assert!(slice_bytes(&sl) >= elements, "slice {s}");
             assert!(s == 0 || !sl.cubes.is_empty());
+            sl.cubes.shrink_to(0);
+            sl.piece_ribbon.shrink_to(0);
+            sl.bottom.shrink_to(0);
+            sl.top.shrink_to(0);
+            sl.row_start.shrink_to(0);
+            sl.ribbons.shrink_to(0);
+            assert_eq!(slice_bytes(&sl), elements, "slice {s}, shrunk");
         }
     }
 
