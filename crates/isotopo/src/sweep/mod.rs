@@ -1103,3 +1103,30 @@ pub fn find_handles(
         genus,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The least corner of each set of a cube's corners, in the original frame: with the
+    /// identity frame, the lowest bit set; with the axes permuted (local x, y, z are original
+    /// y, z, x), the corners one step along local x, y and z are the original corners 2, 4
+    /// and 1, so of the first and the last the least is 1.
+    #[test]
+    fn the_least_original_corner_of_each_set_of_corners() {
+        let t = least_original_corners(&Frame::identity());
+        assert_eq!(t[0], 0);
+        for mask in 1..256usize {
+            assert_eq!(t[mask] as u32, mask.trailing_zeros(), "mask {mask:#010b}");
+        }
+        let permuted = Frame {
+            uvw: [1, 2, 0],
+            offset: [0; 3],
+        };
+        let t = least_original_corners(&permuted);
+        assert_eq!([t[1 << 1], t[1 << 2], t[1 << 4]], [2, 4, 1]);
+        assert_eq!(t[1 << 1 | 1 << 4], 1);
+        assert_eq!(t[1 << 1 | 1 << 2], 2);
+        assert!((1..256).all(|mask| t[mask] == 0 || mask & 1 == 0));
+    }
+}
