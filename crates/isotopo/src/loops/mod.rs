@@ -1700,6 +1700,45 @@ mod tests {
         }
     }
 
+    /// How strongly a loop says which side it goes round: for each of two square rings standing
+    /// side by side, its Reeb loop and its cross loop link each other's copy pushed to one side
+    /// once and the other's not at all (strength 1 both ways); a loop of one ring and a loop of
+    /// the other link no copy (strength 0).
+    #[test]
+    fn a_loop_links_its_partners_copy_on_one_side_only() {
+        let mut vol = MaskVolume::new([30, 8, 14], Frame::identity());
+        for (x, y, z) in (0..30 * 8 * 14).map(|k| (k % 30, (k / 30) % 8, k / 240)) {
+            let x0 = if x < 14 { 2 } else { 16 };
+            let outer = (x0..x0 + 10).contains(&x) && (2..12).contains(&z);
+            let hole = (x0 + 2..x0 + 8).contains(&x) && (4..10).contains(&z);
+            vol.set(x, y, z, outer && !hole && (2..4).contains(&y));
+        }
+        let conn = Connectivity::Six;
+        let progress = crate::progress::NoProgress;
+        let r =
+            crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress).unwrap();
+        assert_eq!(r.handles.len(), 2);
+        let mut g = Graph::new(&vol, cases(conn));
+        let mut cache = SliceCache::new(conn);
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let pairs: Vec<(Vec<Vertex>, Vec<Vertex>)> = r
+            .handles
+            .iter()
+            .map(|h| {
+                let l = measure(&mut g, &mut cache, h, conn, &affine, Limits::NONE);
+                (l.reeb.unwrap().vertices, l.cross.unwrap().vertices)
+            })
+            .collect();
+        for (reeb, cross) in &pairs {
+            assert_eq!(link_strength(&vol, reeb, cross), 1);
+            assert_eq!(link_strength(&vol, cross, reeb), 1);
+        }
+        let ((a, b), (c, d)) = (&pairs[0], &pairs[1]);
+        for (x, y) in [(a, c), (a, d), (b, c), (b, d)] {
+            assert_eq!(link_strength(&vol, x, y), 0);
+        }
+    }
+
     /// The key of the races that ended undecided tells cuts apart: random cuts (3 to 40
     /// vertices of a 16³ grid) with their reverses, 20,000 distinct ones in all, have 20,000
     /// distinct keys. A collision would skip the race of a cut never measured.
