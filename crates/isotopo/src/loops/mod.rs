@@ -1714,9 +1714,7 @@ mod tests {
             vol.set(x, y, z, outer && !hole && (2..4).contains(&y));
         }
         let conn = Connectivity::Six;
-        let progress = crate::progress::NoProgress;
-        let r =
-            crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress).unwrap();
+        let r = sweep_z(&mut vol, conn);
         assert_eq!(r.handles.len(), 2);
         let mut g = Graph::new(&vol, cases(conn));
         let mut cache = SliceCache::new(conn);
@@ -2053,6 +2051,28 @@ mod tests {
         vol
     }
 
+    /// The handles a sweep along z finds in `vol`.
+    fn sweep_z(vol: &mut MaskVolume, conn: Connectivity) -> crate::sweep::HandleReport {
+        let progress = crate::progress::NoProgress;
+        crate::sweep::find_handles(vol, crate::grid::Axis::Z, conn, &progress).unwrap()
+    }
+
+    /// The intra-ribbon tests' cases: a sponge of each side in `sides` (seeded `seed` ^ its
+    /// place in the list) under each connectivity, with the handles a sweep along z finds.
+    fn swept_sponges(
+        sides: &[usize],
+        seed: u64,
+    ) -> impl Iterator<Item = (usize, Connectivity, MaskVolume, crate::sweep::HandleReport)> + '_
+    {
+        sides.iter().enumerate().flat_map(move |(round, &n)| {
+            [Connectivity::Six, Connectivity::TwentySix].map(move |conn| {
+                let mut vol = sponge(n, seed ^ round as u64);
+                let r = sweep_z(&mut vol, conn);
+                (n, conn, vol, r)
+            })
+        })
+    }
+
     /// The 27 offsets (each 0, 1 or 2) of a 3×3×3 box.
     fn box_offsets() -> impl Iterator<Item = (usize, usize, usize)> {
         (0..27).map(|k| (k % 3, (k / 3) % 3, k / 9))
@@ -2064,32 +2084,22 @@ mod tests {
     #[test]
     fn the_loop_near_a_cut_is_as_short_as_the_whole_slices() {
         let (mut checked, mut beyond_first_box) = (0, 0);
-        for (round, n) in [24usize, 32, 40].into_iter().enumerate() {
-            for conn in [Connectivity::Six, Connectivity::TwentySix] {
-                let mut vol = sponge(n, 0x9e37_79b9_7f4a_7c15 ^ round as u64);
-                let r = crate::sweep::find_handles(
-                    &mut vol,
-                    crate::grid::Axis::Z,
-                    conn,
-                    &crate::progress::NoProgress,
-                )
-                .unwrap();
-                for h in &r.handles {
-                    let CycleVolume::Mini(mini) = &h.located.volume else {
-                        continue;
-                    };
-                    let allowed = h.located.allowed.unwrap();
-                    let cut = &h.located.cut;
-                    let mut g = Graph::new(mini, cases(conn));
-                    let near = shortest_odd_loop_near(&mut g, cut, allowed);
-                    let whole = InBox::cubes(allowed.0, allowed.1);
-                    let whole = odd_loop(&mut g, cut, &whole, usize::MAX);
-                    assert!(whole.exact);
-                    let (a, b) = (near.map(|l| l.len()), whole.found.map(|l| l.len()));
-                    assert_eq!(a, b, "n {n} {conn:?}: handle at {:?}", h.located.bbox);
-                    checked += 1;
-                    beyond_first_box += usize::from(a.is_some_and(|l| l >= 8));
-                }
+        for (n, conn, _, r) in swept_sponges(&[24, 32, 40], 0x9e37_79b9_7f4a_7c15) {
+            for h in &r.handles {
+                let CycleVolume::Mini(mini) = &h.located.volume else {
+                    continue;
+                };
+                let allowed = h.located.allowed.unwrap();
+                let cut = &h.located.cut;
+                let mut g = Graph::new(mini, cases(conn));
+                let near = shortest_odd_loop_near(&mut g, cut, allowed);
+                let whole = InBox::cubes(allowed.0, allowed.1);
+                let whole = odd_loop(&mut g, cut, &whole, usize::MAX);
+                assert!(whole.exact);
+                let (a, b) = (near.map(|l| l.len()), whole.found.map(|l| l.len()));
+                assert_eq!(a, b, "n {n} {conn:?}: handle at {:?}", h.located.bbox);
+                checked += 1;
+                beyond_first_box += usize::from(a.is_some_and(|l| l >= 8));
             }
         }
         assert!(checked > 300, "{checked} handles checked");
@@ -2106,45 +2116,38 @@ mod tests {
     #[test]
     fn a_loop_round_a_mini_cycle_lies_among_its_ribbons_pieces() {
         let (mut checked, mut found) = (0, 0);
-        for (round, n) in [24usize, 32].into_iter().enumerate() {
-            for conn in [Connectivity::Six, Connectivity::TwentySix] {
-                let mut vol = sponge(n, 0x2545_f491_4f6c_dd1d ^ round as u64);
-                let progress = crate::progress::NoProgress;
-                let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
-                    .unwrap();
-                let mut rows = MiniRows::default();
-                for h in &r.handles {
-                    let l = &h.located;
-                    let CycleVolume::Mini(mini) = &l.volume else {
-                        continue;
-                    };
-                    if l.direct {
-                        continue;
-                    }
-                    let allowed = l.allowed.unwrap();
-                    let region = mini_cycle_region(mini, h, allowed, conn, &mut rows);
-                    assert!(!region.0.is_empty(), "no piece round the cycle");
-                    // Every piece is of a ribbon of the cycle, told from a fresh slice.
-                    let table = cases(conn);
-                    for &(cube, k) in region.0.keys() {
-                        let s = cube[2];
-                        let sl =
-                            SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
-                        let c = sl
-                            .find_cube((cube[0] + 1) as u32, (cube[1] + 1) as u32)
-                            .unwrap();
-                        assert!((k as usize) < table[sl.cubes[c].case as usize].n_pieces as usize);
-                        let ribbon = sl.piece_ribbon[sl.cubes[c].first_piece as usize + k as usize];
-                        assert!(l.cycle.iter().any(|n| n.kind == NodeKind::Ribbon
-                            && n.level as i64 == s
-                            && n.local == ribbon));
-                        assert_eq!(cube[1], allowed.0[1]);
-                    }
-                    let mut g = Graph::new(mini, cases(conn));
-                    let lp = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
-                    checked += 1;
-                    found += usize::from(lp.is_some());
+        for (_, conn, _, r) in swept_sponges(&[24, 32], 0x2545_f491_4f6c_dd1d) {
+            let mut rows = MiniRows::default();
+            for h in &r.handles {
+                let l = &h.located;
+                let CycleVolume::Mini(mini) = &l.volume else {
+                    continue;
+                };
+                if l.direct {
+                    continue;
                 }
+                let allowed = l.allowed.unwrap();
+                let region = mini_cycle_region(mini, h, allowed, conn, &mut rows);
+                assert!(!region.0.is_empty(), "no piece round the cycle");
+                // Every piece is of a ribbon of the cycle, told from a fresh slice.
+                let table = cases(conn);
+                for &(cube, k) in region.0.keys() {
+                    let s = cube[2];
+                    let sl = SliceSurfels::build(mini.plane(s), mini.plane(s + 1), s as i32, conn);
+                    let c = sl
+                        .find_cube((cube[0] + 1) as u32, (cube[1] + 1) as u32)
+                        .unwrap();
+                    assert!((k as usize) < table[sl.cubes[c].case as usize].n_pieces as usize);
+                    let ribbon = sl.piece_ribbon[sl.cubes[c].first_piece as usize + k as usize];
+                    assert!(l.cycle.iter().any(|n| n.kind == NodeKind::Ribbon
+                        && n.level as i64 == s
+                        && n.local == ribbon));
+                    assert_eq!(cube[1], allowed.0[1]);
+                }
+                let mut g = Graph::new(mini, cases(conn));
+                let lp = odd_loop(&mut g, &l.cut, &region, usize::MAX).found;
+                checked += 1;
+                found += usize::from(lp.is_some());
             }
         }
         // Measured: 345 of 396 (the others' loops leave the cycle's ribbons).
@@ -2222,9 +2225,7 @@ mod tests {
             .chain((0..3u64).map(|seed| sponge(24, 0x9e37_79b9_7f4a_7c15 ^ seed)));
         let mut chained = 0;
         for mut vol in volumes {
-            let progress = crate::progress::NoProgress;
-            let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
-                .unwrap();
+            let r = sweep_z(&mut vol, conn);
             let mut g = Graph::new(&vol, cases(conn));
             let mut cache = SliceCache::new(conn);
             for h in &r.handles {
@@ -2266,9 +2267,7 @@ mod tests {
         for seed in 0..3u64 {
             let seed = 0x9e37_79b9_7f4a_7c15 ^ seed;
             let mut vol = sponge(24, seed);
-            let progress = crate::progress::NoProgress;
-            let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
-                .unwrap();
+            let r = sweep_z(&mut vol, conn);
             let loops = |l: &HandleLoops| {
                 let v = |x: &Option<Loop>| x.as_ref().map(|x| x.vertices.clone());
                 (v(&l.reeb), v(&l.cross))
@@ -2346,38 +2345,32 @@ mod tests {
         };
         let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         let (mut checked, mut not_the_cut) = (0, 0);
-        for (round, n) in [24usize, 32].into_iter().enumerate() {
-            for conn in [Connectivity::Six, Connectivity::TwentySix] {
-                let mut vol = sponge(n, 0x2545_f491_4f6c_dd1d ^ round as u64);
-                let progress = crate::progress::NoProgress;
-                let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
-                    .unwrap();
-                let mut g = Graph::new(&vol, cases(conn));
-                let mut cache = SliceCache::new(conn);
-                for h in &r.handles {
-                    if !matches!(h.located.volume, CycleVolume::Mini(_)) {
-                        continue;
-                    }
-                    let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
-                    let (Some(a), Some(b), true) = (&l.reeb, &l.cross, l.exact) else {
-                        continue;
-                    };
-                    let (a, b) = (&a.vertices, &b.vertices);
-                    let within = refined_within(h, limits);
-                    let shorter = odd_loop(&mut g, b, &within, a.len());
-                    assert!(shorter.exact);
-                    let at = h.located.bbox;
-                    assert!(
-                        shorter.found.is_none(),
-                        "n {n} {conn:?}: handle at {at:?}: Reeb loop of {}, one of {} crosses \
-                         the cross loop",
-                        a.len(),
-                        shorter.found.map_or(0, |x| x.len())
-                    );
-                    checked += 1;
-                    let cut = &l.basis.as_ref().unwrap().0;
-                    not_the_cut += usize::from(a.len() < cut.len());
+        for (n, conn, vol, r) in swept_sponges(&[24, 32], 0x2545_f491_4f6c_dd1d) {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            for h in &r.handles {
+                if !matches!(h.located.volume, CycleVolume::Mini(_)) {
+                    continue;
                 }
+                let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
+                let (Some(a), Some(b), true) = (&l.reeb, &l.cross, l.exact) else {
+                    continue;
+                };
+                let (a, b) = (&a.vertices, &b.vertices);
+                let within = refined_within(h, limits);
+                let shorter = odd_loop(&mut g, b, &within, a.len());
+                assert!(shorter.exact);
+                let at = h.located.bbox;
+                assert!(
+                    shorter.found.is_none(),
+                    "n {n} {conn:?}: handle at {at:?}: Reeb loop of {}, one of {} crosses \
+                         the cross loop",
+                    a.len(),
+                    shorter.found.map_or(0, |x| x.len())
+                );
+                checked += 1;
+                let cut = &l.basis.as_ref().unwrap().0;
+                not_the_cut += usize::from(a.len() < cut.len());
             }
         }
         assert!(
@@ -2401,45 +2394,39 @@ mod tests {
         };
         let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         let mut checked = 0;
-        for (round, n) in [24usize, 32].into_iter().enumerate() {
-            for conn in [Connectivity::Six, Connectivity::TwentySix] {
-                let mut vol = sponge(n, 0x2545_f491_4f6c_dd1d ^ round as u64);
-                let progress = crate::progress::NoProgress;
-                let r = crate::sweep::find_handles(&mut vol, crate::grid::Axis::Z, conn, &progress)
-                    .unwrap();
-                let mut g = Graph::new(&vol, cases(conn));
-                let mut cache = SliceCache::new(conn);
-                for h in &r.handles {
-                    if !matches!(h.located.volume, CycleVolume::Mini(_)) {
-                        continue;
-                    }
-                    let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
-                    let at = h.located.bbox;
-                    let (Some(a), Some(b)) = (&l.reeb, &l.cross) else {
-                        panic!("n {n} {conn:?}: handle at {at:?} has no pair");
-                    };
-                    let (a, b) = (&a.vertices, &b.vertices);
-                    let within = refined_within(h, limits);
-                    let shorter = |g: &mut Graph, x: &[Vertex], than: usize| {
-                        let r = odd_loop(g, x, &within, than);
-                        assert!(r.exact);
-                        r.found.is_some()
-                    };
-                    assert_eq!(crossing_parity(&mut g, a, b), Some(1), "n {n} {conn:?}");
-                    // Refined from a loop that is not the shortest crossing `Q1`: not exact,
-                    // so not kept from pass to pass as if it were.
-                    assert!(!l.exact, "n {n} {conn:?}: handle at {at:?} said exact");
-                    let s = h.located.ribbon.unwrap().0;
-                    let inside = |x: &[Vertex]| x.iter().all(|v| v.p[2] <= s + 1);
-                    assert!(inside(a), "n {n} {conn:?}: Reeb loop above slice {s}");
-                    assert!(
-                        !shorter(&mut g, a, b.len()) || !shorter(&mut g, b, a.len()),
-                        "n {n} {conn:?}: handle at {at:?}: loops of {} and {} not refined",
-                        a.len(),
-                        b.len()
-                    );
-                    checked += 1;
+        for (n, conn, vol, r) in swept_sponges(&[24, 32], 0x2545_f491_4f6c_dd1d) {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            for h in &r.handles {
+                if !matches!(h.located.volume, CycleVolume::Mini(_)) {
+                    continue;
                 }
+                let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
+                let at = h.located.bbox;
+                let (Some(a), Some(b)) = (&l.reeb, &l.cross) else {
+                    panic!("n {n} {conn:?}: handle at {at:?} has no pair");
+                };
+                let (a, b) = (&a.vertices, &b.vertices);
+                let within = refined_within(h, limits);
+                let shorter = |g: &mut Graph, x: &[Vertex], than: usize| {
+                    let r = odd_loop(g, x, &within, than);
+                    assert!(r.exact);
+                    r.found.is_some()
+                };
+                assert_eq!(crossing_parity(&mut g, a, b), Some(1), "n {n} {conn:?}");
+                // Refined from a loop that is not the shortest crossing `Q1`: not exact,
+                // so not kept from pass to pass as if it were.
+                assert!(!l.exact, "n {n} {conn:?}: handle at {at:?} said exact");
+                let s = h.located.ribbon.unwrap().0;
+                let inside = |x: &[Vertex]| x.iter().all(|v| v.p[2] <= s + 1);
+                assert!(inside(a), "n {n} {conn:?}: Reeb loop above slice {s}");
+                assert!(
+                    !shorter(&mut g, a, b.len()) || !shorter(&mut g, b, a.len()),
+                    "n {n} {conn:?}: handle at {at:?}: loops of {} and {} not refined",
+                    a.len(),
+                    b.len()
+                );
+                checked += 1;
             }
         }
         assert!(checked > 200, "{checked} handles checked");
