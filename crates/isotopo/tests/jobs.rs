@@ -208,6 +208,19 @@ impl isotopo::progress::Progress for StopAfter {
     }
 }
 
+/// The default surface and analyze options at isovalue `iso`.
+fn default_options(iso: f64) -> (SurfaceOptions, isotopo::AnalyzeOptions) {
+    let surface = SurfaceOptions {
+        iso,
+        ..SurfaceOptions::default()
+    };
+    let analyze = isotopo::AnalyzeOptions {
+        surface,
+        ..isotopo::AnalyzeOptions::default()
+    };
+    (surface, analyze)
+}
+
 fn is_cancelled<T>(r: isotopo::Result<T>) -> bool {
     matches!(r, Err(isotopo::Error::Cancelled))
 }
@@ -218,14 +231,7 @@ fn is_cancelled<T>(r: isotopo::Result<T>) -> bool {
 #[test]
 fn a_caller_can_cancel_every_job() {
     let (vol, iso) = noise(7);
-    let surface = SurfaceOptions {
-        iso,
-        ..SurfaceOptions::default()
-    };
-    let analyze = isotopo::AnalyzeOptions {
-        surface,
-        ..isotopo::AnalyzeOptions::default()
-    };
+    let (surface, analyze) = default_options(iso);
     let simplify = SimplifyOptions {
         surface,
         tau: f64::INFINITY,
@@ -481,14 +487,7 @@ impl isotopo::progress::Progress for Stages {
 #[test]
 fn each_stage_reports_the_steps_it_announced() {
     let (vol, iso) = noise(7);
-    let surface = SurfaceOptions {
-        iso,
-        ..SurfaceOptions::default()
-    };
-    let analyze = isotopo::AnalyzeOptions {
-        surface,
-        ..isotopo::AnalyzeOptions::default()
-    };
+    let (_, analyze) = default_options(iso);
     let src = || Source::from(vol.clone());
     let nz = vol.dims()[2] as u64;
     let stages = Stages::default();
