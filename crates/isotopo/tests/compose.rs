@@ -6,6 +6,8 @@ mod common;
 
 use common::oracle::betti;
 use common::{Rng, BOTH};
+use isotopo::compose::Composition;
+use isotopo::grid::{Axis, MaskVolume};
 use isotopo::progress::NoProgress;
 use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;
@@ -25,8 +27,9 @@ fn case(name: &str, vol: InMemoryVolume, iso: f64) -> Case {
     }
 }
 
-/// Runs the step alone (tau 0) and checks it: returns the critical cells left.
-fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
+/// Runs the step alone (tau 0) and checks it: returns the critical cells left and the step's
+/// counters (see [`counters`]).
+fn compose_and_check(c: &Case, conn: Connectivity) -> ((usize, usize), [u64; 4]) {
     let opts = SimplifyOptions {
         surface: SurfaceOptions {
             iso: c.iso,
@@ -73,6 +76,20 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
             "{what}: well-composed, yet the connectivities differ"
         );
     }
+    if left == (0, 0) {
+        // Mended in one go: simplify's totals are the step's own, run alone on the masks.
+        let alone = compose_alone(c, conn);
+        assert_eq!(
+            counters(composition),
+            counters(&alone),
+            "{what}: simplify's totals against the step alone"
+        );
+        assert_eq!(
+            composition.flips.len(),
+            alone.flips.len(),
+            "{what}: flips against the step alone"
+        );
+    }
     let other = b(&after, conn.other());
     let a = &done.after_other;
     assert_eq!(
@@ -104,7 +121,20 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> (usize, usize) {
         composition.swaps,
         composition.rewrites
     );
-    left
+    (left, counters(composition))
+}
+
+/// The well-composed step alone, on the masks of the case's volume.
+fn compose_alone(c: &Case, conn: Connectivity) -> Composition {
+    let mut v = c.vol.clone();
+    let opts = common::opts(c.iso, conn);
+    let mut masks = MaskVolume::from_reader(&mut v, &opts, Axis::Z, None, &NoProgress).unwrap();
+    isotopo::compose::compose(&mut masks, conn, None, &NoProgress).unwrap()
+}
+
+/// The step's counters: pairs, specks moved, handles swapped, rewrites.
+fn counters(c: &Composition) -> [u64; 4] {
+    [c.pairs, c.moves, c.swaps, c.rewrites]
 }
 
 /// A volume of -1 with the samples where `inside` holds set to +1.
@@ -133,6 +163,13 @@ fn from_planes(dims: [usize; 3], planes: &[&str]) -> InMemoryVolume {
             .and_then(|p| p.split(' ').nth(y.wrapping_sub(3)));
         row.and_then(|r| r.as_bytes().get(x.wrapping_sub(3))) == Some(&b'#')
     })
+}
+
+/// Whether `p` lies on one of the axis-aligned segments between successive `points`.
+fn on_path(p: [usize; 3], points: &[[usize; 3]]) -> bool {
+    points
+        .windows(2)
+        .any(|w| (0..3).all(|c| (w[0][c].min(w[1][c])..=w[0][c].max(w[1][c])).contains(&p[c])))
 }
 
 /// Whether `p` lies in the cube of side `n` with lowest corner `lo`.
@@ -218,6 +255,37 @@ fn patterns() -> Vec<Case> {
             from_planes(d, &CHEST_CRACK),
             0.0,
         ),
+        // Two threads from a block, each a handle with it, passing each other diagonally
+        // at a face of the plane y = 10; they are joined only through the block, 15 samples
+        // away, so that no single flip near the face keeps the topology: a swap moves one
+        // thread's handle off the face.
+        case(
+            "threads passing each other",
+            {
+                let a = [
+                    [6, 9, 4],
+                    [20, 9, 4],
+                    [20, 10, 4],
+                    [20, 10, 3],
+                    [20, 30, 3],
+                    [6, 30, 3],
+                ];
+                let b = [
+                    [6, 35, 5],
+                    [30, 35, 5],
+                    [30, 10, 5],
+                    [21, 10, 5],
+                    [21, 25, 5],
+                    [6, 25, 5],
+                ];
+                shape([42, 40, 10], |x, y, z| {
+                    let block =
+                        (1..=5).contains(&x) && (1..=38).contains(&y) && (1..=8).contains(&z);
+                    block || on_path([x, y, z], &a) || on_path([x, y, z], &b)
+                })
+            },
+            0.0,
+        ),
         // A ring of samples each touching the next along an edge, round a hole.
         case(
             "diagonal ring",
@@ -231,9 +299,21 @@ fn patterns() -> Vec<Case> {
 
 #[test]
 fn patterns_become_well_composed() {
+    let mut used = [0; 4];
     for c in patterns() {
         for conn in BOTH {
-            let left = compose_and_check(&c, conn);
+            let (left, counted) = compose_and_check(&c, conn);
+            (0..4).for_each(|k| used[k] += counted[k]);
+            // The two patterns made for a swap and a rewrite take exactly that, and nothing
+            // else, under connectivity 6 (under 26 one simple flip mends each).
+            let only = match c.name.as_str() {
+                "threads passing each other" => Some([0, 0, 1, 0]),
+                "crack between sheets (chest CT)" => Some([0, 0, 0, 1]),
+                _ => None,
+            };
+            if let (Some(only), Connectivity::Six) = (only, conn) {
+                assert_eq!(counted, only, "{}: pairs, moves, swaps, rewrites", c.name);
+            }
             assert_eq!(
                 left,
                 (0, 0),
@@ -243,6 +323,10 @@ fn patterns_become_well_composed() {
             );
         }
     }
+    // Each of the step's ways of mending is taken by some pattern, so the totals compared with
+    // the step alone are not all zero.
+    eprintln!("pairs, moves, swaps, rewrites: {used:?}");
+    assert!(used.iter().all(|&n| n > 0), "{used:?}");
 }
 
 /// Random noise at several densities and smoothed noise at several isovalues, some samples
@@ -267,7 +351,7 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
             iso,
         );
         for conn in BOTH {
-            let left = compose_and_check(&c, conn);
+            let (left, _) = compose_and_check(&c, conn);
             raw.0 += left.0 + left.1;
             let first = common::critical_cells(&common::mask_of(&c.vol, iso), dims);
             raw.1 += first.0 + first.1;
@@ -283,7 +367,7 @@ fn noise_keeps_its_topology_and_is_nearly_mended() {
             iso,
         );
         for conn in BOTH {
-            let left = compose_and_check(&c, conn);
+            let (left, _) = compose_and_check(&c, conn);
             smooth.0 += left.0 + left.1;
             let first = common::critical_cells(&common::mask_of(&c.vol, iso), dims);
             smooth.1 += first.0 + first.1;
