@@ -2431,4 +2431,33 @@ mod tests {
         }
         assert!(checked > 200, "{checked} handles checked");
     }
+
+    /// The generator [`ribbon_loop`] takes for an intra-ribbon handle is one near where the
+    /// handle was found: for every intra-ribbon handle of random sponges, the distance from the
+    /// centre of the handle's box to the loop's nearest vertex. Measured: 1,048 of 1,268 within 2
+    /// voxels, 1,170 within 4 (a loop nearest some other point of the ribbon: 674 and 863).
+    #[test]
+    fn a_ribbons_loop_passes_near_its_handle() {
+        let mut distances = Vec::new();
+        for (_, conn, vol, r) in swept_sponges(&[24, 32, 40], 0x2545_f491_4f6c_dd1d) {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            for h in r.handles.iter().filter(|h| h.located.ribbon.is_some()) {
+                let b = &h.located.bbox;
+                let centre: [f64; 3] =
+                    std::array::from_fn(|k| (b.min[k] + b.max[k]) as f64 / 2.0 + 0.5);
+                let lp = ribbon_loop(&mut g, &mut cache, h).expect("a ribbon loop");
+                let distance = |v: &Vertex| {
+                    let p = vol.frame.to_original(v.midpoint());
+                    (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum::<f64>()
+                };
+                distances.push(lp.iter().map(distance).fold(f64::INFINITY, f64::min).sqrt());
+            }
+        }
+        let n = distances.len();
+        let within = |d: f64| distances.iter().filter(|&&x| x <= d).count();
+        assert!(n > 1000, "{n} intra-ribbon handles");
+        assert!(within(2.0) * 4 >= n * 3, "{} of {n} within 2", within(2.0));
+        assert!(within(4.0) * 10 >= n * 9, "{} of {n} within 4", within(4.0));
+    }
 }
