@@ -1649,6 +1649,9 @@ mod tests {
     ///    |  .......  |
     ///    +-----------+
     /// ```
+    ///
+    /// The whole fan votes, not its centre: round a bar 3..=8 with a core of the other side
+    /// (5..=6) where the fan's centre lies, the bar's side still wins.
     #[test]
     fn a_fan_spans_the_bar_it_goes_round_or_the_hole() {
         // The square loop of edge midpoints from lo + 0.5 to hi + 0.5, corners left out.
@@ -1672,14 +1675,24 @@ mod tests {
             }));
             lp
         };
-        // (bar from, bar to, loop lo, loop hi): the loop on the bar's surface, then wider.
-        for (from, to, lo, hi) in [(4, 6, 3, 6), (4, 7, 1, 9)] {
+        // (bar from, bar to, loop lo, loop hi, core): the loop on the bar's surface, then
+        // wider, then round a bar 3..=8 with a core of the other side 5..=6 round the fan's
+        // centre (most of the fan is still in the bar, so the bar's side wins).
+        let cases = [
+            (4, 6, 3, 6, 1..=0),
+            (4, 7, 1, 9, 1..=0),
+            (3, 8, 1, 9, 5..=6),
+        ];
+        for (from, to, lo, hi, core) in cases {
             for hole in [false, true] {
                 let mut vol = MaskVolume::new([11, 11, 5], Frame::identity());
                 for z in 0..5 {
                     for y in 0..11 {
                         for x in 0..11 {
-                            let in_bar = (from..=to).contains(&x) && (from..=to).contains(&y);
+                            let within = |r: &std::ops::RangeInclusive<usize>| {
+                                r.contains(&x) && r.contains(&y)
+                            };
+                            let in_bar = within(&(from..=to)) && !within(&core);
                             vol.set(x, y, z, in_bar != hole);
                         }
                     }
@@ -1691,7 +1704,9 @@ mod tests {
                 };
                 for z in 0..5 {
                     let mut lp = ring(lo, hi, z);
-                    let at = format!("bar {from}..={to}, loop {lo}..{hi}, hole {hole}, z {z}");
+                    let at = format!(
+                        "bar {from}..={to}, core {core:?}, loop {lo}..{hi}, hole {hole}, z {z}"
+                    );
                     assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}");
                     lp.reverse();
                     assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}, reversed");
