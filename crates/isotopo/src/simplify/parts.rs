@@ -801,6 +801,7 @@ fn check_parts(vol: &MaskVolume, opts: &SimplifyOptions, out: &Parts) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::Frame;
 
     fn removed(part: PartKind, operation: PartOperation, samples_changed: usize) -> PartRemoved {
         PartRemoved {
@@ -831,5 +832,94 @@ mod tests {
         assert_eq!(parts.count(PartOperation::Fill), 2);
         assert_eq!(parts.count(PartOperation::Delete), 1);
         assert_eq!(parts.count(PartOperation::Open), 1);
+    }
+
+    /// A hollow square pipe (walls 3 x 3 round a hollow core, centreline a square of side 29 in
+    /// z = 4), cut open across at x = 20 on its side y = 5, and a speck of one sample at
+    /// (20, 9, 4) to be bridged to it. The pipe's wall is a thickened tube, its core a tunnel
+    /// open at the cut.
+    ///
+    /// ```text
+    ///   plane z = 4, near the cut:     y = 9   . . . s . . .     s the speck
+    ///                                  y = 7   . . . + . . .     + a bridge sample
+    ///                                  y = 6   # # # . # # #     the pipe's wall
+    ///                                  y = 5   . . . . . . .     its hollow core (open at the cut)
+    ///                                  y = 4   # # # . # # #
+    ///                                         x = 20 is the cut
+    /// ```
+    fn cut_pipe_and_speck() -> MaskVolume {
+        let mut vol = MaskVolume::new([40, 40, 9], Frame::identity());
+        let from_line = |c: i64| (c - 5).abs().min((c - 34).abs());
+        for (x, y, z) in (0..40 * 40 * 9).map(|k| (k % 40, (k / 40) % 40, k / 1600)) {
+            let [xi, yi, zi] = [x, y, z].map(|c| c as i64);
+            // The wall reaches one sample past the centreline's ends, closing the corners.
+            let along_x = (4..=35).contains(&xi) && from_line(yi) <= 1;
+            let along_y = (4..=35).contains(&yi) && from_line(xi) <= 1;
+            let tube = (along_x || along_y) && (zi - 4).abs() <= 1;
+            let core = zi == 4
+                && ((5..=34).contains(&xi) && from_line(yi) == 0
+                    || (5..=34).contains(&yi) && from_line(xi) == 0);
+            let cut = xi == 20 && yi <= 6;
+            vol.set(x, y, z, tube && !core && !cut);
+        }
+        vol.set(20, 9, 4, true);
+        vol
+    }
+
+    /// A bridge is kept only if it changes nothing but the one join, even where the Euler
+    /// characteristic cannot tell: a bridge from the speck that also closes the pipe's cut (its
+    /// far end going round the wall's cross-section there) joins the speck (b0 - 1), closes the
+    /// wall into a torus (b1 + 1) and the core into a cavity (b2 + 1), so the characteristic
+    /// drops by one as for a plain join. The far end's neighbours on the wall are connected only
+    /// the long way round the pipe, and the core beside the bridge is cut off: it is refused and
+    /// flipped back. A plain bridge beside it is kept.
+    #[test]
+    fn a_bridge_that_also_closes_a_handle_and_a_cavity_is_refused() {
+        let conn = Connectivity::Six;
+        let mut vol = cut_pipe_and_speck();
+        let side = Side::solid(conn);
+        let (parts, labels) = label(&vol, side).unwrap();
+        let speck = parts.iter().position(|p| p.seed == [20, 9, 4]).unwrap();
+        let owner = Owner::new(labels, &[speck], parts.len());
+        // Down to the cut, then round the wall's cross-section there (x = 20, y and z 3..=5).
+        let round = [
+            [6, 4],
+            [6, 5],
+            [5, 5],
+            [4, 5],
+            [4, 4],
+            [4, 3],
+            [5, 3],
+            [6, 3],
+        ];
+        let closing: Vec<[i64; 3]> = [[20, 8, 4], [20, 7, 4]]
+            .into_iter()
+            .chain(round.map(|[y, z]| [20, y, z]))
+            .collect();
+        let betti = |vol: &MaskVolume| {
+            let g = vol.genus(conn).unwrap();
+            [g.b0, g.b1, g.b2]
+        };
+        let cubes = touched_cubes(&closing);
+        let (before, b) = (chi4(&vol, conn, &cubes), betti(&vol));
+        assert_eq!(b, [2, 1, 0], "the speck, the cut pipe round its core");
+        set_all(&mut vol, &closing, true);
+        assert_eq!(betti(&vol), [1, 2, 1], "joined, a torus round a cavity");
+        assert_eq!(chi4(&vol, conn, &cubes) - before, -8, "as a plain join");
+        set_all(&mut vol, &closing, false);
+        let samples = |vol: &MaskVolume| -> Vec<bool> {
+            (0..40 * 40 * 9)
+                .map(|k| vol.get(k % 40, (k / 40) % 40, k / 1600))
+                .collect()
+        };
+        let unchanged = samples(&vol);
+        assert!(!verify_join(&mut vol, side, &closing, &owner, 0));
+        assert!(
+            samples(&vol) == unchanged,
+            "the refused bridge is flipped back"
+        );
+        let plain = [[20, 8, 4], [20, 7, 4], [21, 7, 4]];
+        assert!(verify_join(&mut vol, side, &plain, &owner, 0));
+        assert!(plain.iter().all(|q| vol.get(q[0], q[1], q[2])));
     }
 }
