@@ -814,10 +814,21 @@ mod tests {
         }
     }
 
-    /// The report's totals add up each kind's parts and each operation's, and only those.
+    /// The report's totals add up each kind's parts and each operation's, and only those; the
+    /// parts kept are counted by kind.
     #[test]
     fn totals_count_each_kind_and_operation_apart() {
+        let kept = |part: PartKind| PartKept {
+            part,
+            size: 1,
+            bbox: BBox::EMPTY,
+        };
         let parts = Parts {
+            kept: vec![
+                kept(PartKind::Cavity),
+                kept(PartKind::Component),
+                kept(PartKind::Cavity),
+            ],
             removed: vec![
                 removed(PartKind::Component, PartOperation::Delete, 5),
                 removed(PartKind::Cavity, PartOperation::Fill, 7),
@@ -832,6 +843,8 @@ mod tests {
         assert_eq!(parts.count(PartOperation::Fill), 2);
         assert_eq!(parts.count(PartOperation::Delete), 1);
         assert_eq!(parts.count(PartOperation::Open), 1);
+        assert_eq!(parts.kept_count(PartKind::Component), 1);
+        assert_eq!(parts.kept_count(PartKind::Cavity), 2);
     }
 
     /// A hollow square pipe (walls 3 x 3 round a hollow core, centreline a square of side 29 in
