@@ -134,3 +134,86 @@ pub fn label(
     }
     PlaneContours { of_segment, length }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::{Frame, MaskVolume};
+    use crate::topology::cases::{cases, Connectivity};
+
+    /// Connected pieces of the samples of a plane equal to `side`, the plane padded with one
+    /// ring of outside samples; neighbours along edges only (`diagonal` false) or also across
+    /// corners.
+    fn pieces(plane: &[Vec<bool>], side: bool, diagonal: bool) -> usize {
+        let (ny, nx) = (plane.len() as i64, plane[0].len() as i64);
+        let at = |x: i64, y: i64| {
+            let inner = (0..nx).contains(&x) && (0..ny).contains(&y);
+            inner && plane[y as usize][x as usize]
+        };
+        let mut seen = std::collections::HashSet::new();
+        let mut count = 0;
+        for start in (-1..=ny).flat_map(|y| (-1..=nx).map(move |x| (x, y))) {
+            if at(start.0, start.1) != side || !seen.insert(start) {
+                continue;
+            }
+            count += 1;
+            let mut stack = vec![start];
+            while let Some((x, y)) = stack.pop() {
+                for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
+                    let n = (x + dx, y + dy);
+                    let step = (dx != 0) as u8 + (dy != 0) as u8;
+                    let inner = (-1..=nx).contains(&n.0) && (-1..=ny).contains(&n.1);
+                    if step == 0 || (step == 2 && !diagonal) || !inner || at(n.0, n.1) != side {
+                        continue;
+                    }
+                    if seen.insert(n) {
+                        stack.push(n);
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    /// The contours of random planes, lower and upper, are as many as the boundaries between
+    /// their pieces: in a plane the pieces of the two sides, each touching the next, make a
+    /// tree, whose edges are the contours (inside pieces + outside pieces - 1). Under
+    /// connectivity 6 the inside joins along edges only (two inside samples across a square's
+    /// diagonal are two contours), under 26 across corners too. Each contour goes round at least
+    /// one sample: four segments or more.
+    #[test]
+    fn contours_are_the_boundaries_between_a_planes_pieces() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let (nx, ny) = (9, 8);
+        let mut uf = UnionFind::new(0);
+        for round in 0..200 {
+            let density = [30, 50, 70][round % 3];
+            let mut vol = MaskVolume::new([nx, ny, 2], Frame::identity());
+            let mut planes = vec![vec![vec![false; nx]; ny]; 2];
+            for (z, plane) in planes.iter_mut().enumerate() {
+                for (y, row) in plane.iter_mut().enumerate() {
+                    for (x, sample) in row.iter_mut().enumerate() {
+                        *sample = random() % 100 < density;
+                        vol.set(x, y, z, *sample);
+                    }
+                }
+            }
+            for conn in [Connectivity::Six, Connectivity::TwentySix] {
+                let six = conn == Connectivity::Six;
+                let sl = SliceSurfels::build(vol.plane(0), vol.plane(1), 0, conn);
+                for (face, plane) in [(4, &planes[0]), (5, &planes[1])] {
+                    let c = label(&sl, face, cases(conn), &mut uf);
+                    let want = pieces(plane, true, !six) + pieces(plane, false, six) - 1;
+                    assert_eq!(c.count(), want, "round {round} {conn:?} face {face}");
+                    assert!(c.length.iter().all(|&n| n >= 4), "{:?}", c.length);
+                }
+            }
+        }
+    }
+}
