@@ -1782,7 +1782,8 @@ mod tests {
     /// A loop round a square ring, broken where a bump is added to the ring's outer face, is
     /// mended round the bump: a closed walk on the new surface that keeps every vertex of the
     /// loop still on it, in order, and leaves it only next to the bump. Unbroken, it comes back
-    /// as it was; with the ring gone, there is nothing to mend.
+    /// as it was; with the ring gone, there is nothing to mend. A step that is no longer an
+    /// edge, its two vertices still there, is mended too.
     ///
     /// ```text
     ///   y                 the loop: the ring's outer contour in plane z = 5
@@ -1854,6 +1855,16 @@ mod tests {
 
         let none = ring(false, true);
         assert_eq!(mend_walk(&mut Graph::new(&none, cases(conn)), &kept), None);
+
+        // Every vertex still there but a stretch of steps gone: 5..=10 left out, 4 to 11 is
+        // no edge; it is mended by a path between them.
+        let mut top = Graph::new(&before, cases(conn));
+        let (a, b) = (kept[4], kept[11]);
+        assert!(top.around(a).is_some_and(|n| n.position(b).is_none()));
+        let skipping: Vec<Vertex> = [&kept[..5], &kept[11..]].concat();
+        let mended = mend_walk(&mut top, &skipping).expect("mended");
+        assert!(crate::surface::search::is_closed_walk(&mut top, &mended));
+        assert!(mended.len() > skipping.len());
     }
 
     /// A slice's bytes as the cache counts them hold at least its surfels' elements, and
