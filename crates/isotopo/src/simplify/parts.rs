@@ -891,9 +891,7 @@ mod tests {
         let conn = Connectivity::Six;
         let mut vol = cut_pipe_and_speck();
         let side = Side::solid(conn);
-        let (parts, labels) = label(&vol, side).unwrap();
-        let speck = parts.iter().position(|p| p.seed == [20, 9, 4]).unwrap();
-        let owner = Owner::new(labels, &[speck], parts.len());
+        let owner = speck_owner(&vol, [20, 9, 4]);
         // Down to the cut, then round the wall's cross-section there (x = 20, y and z 3..=5).
         let round = [
             [6, 4],
@@ -909,22 +907,17 @@ mod tests {
             .into_iter()
             .chain(round.map(|[y, z]| [20, y, z]))
             .collect();
-        let betti = |vol: &MaskVolume| {
-            let g = vol.genus(conn).unwrap();
-            [g.b0, g.b1, g.b2]
-        };
         let cubes = touched_cubes(&closing);
-        let (before, b) = (chi4(&vol, conn, &cubes), betti(&vol));
+        let (before, b) = (chi4(&vol, conn, &cubes), betti(&vol, conn));
         assert_eq!(b, [2, 1, 0], "the speck, the cut pipe round its core");
         set_all(&mut vol, &closing, true);
-        assert_eq!(betti(&vol), [1, 2, 1], "joined, a torus round a cavity");
+        assert_eq!(
+            betti(&vol, conn),
+            [1, 2, 1],
+            "joined, a torus round a cavity"
+        );
         assert_eq!(chi4(&vol, conn, &cubes) - before, -8, "as a plain join");
         set_all(&mut vol, &closing, false);
-        let samples = |vol: &MaskVolume| -> Vec<bool> {
-            (0..40 * 40 * 9)
-                .map(|k| vol.get(k % 40, (k / 40) % 40, k / 1600))
-                .collect()
-        };
         let unchanged = samples(&vol);
         assert!(!verify_join(&mut vol, side, &closing, &owner, 0));
         assert!(
@@ -934,5 +927,70 @@ mod tests {
         let plain = [[20, 8, 4], [20, 7, 4], [21, 7, 4]];
         assert!(verify_join(&mut vol, side, &plain, &owner, 0));
         assert!(plain.iter().all(|q| vol.get(q[0], q[1], q[2])));
+    }
+
+    /// A bridge whose far end's neighbours are connected and whose sides stay connected, but
+    /// that touches what stays twice, is refused by the Euler characteristic: a speck between
+    /// the arms of a U, bridged to the right arm where the path starts and to the left arm
+    /// where it ends, closes the U into a ring (b0 - 1, b1 + 1). A bridge to one arm is kept.
+    ///
+    /// ```text
+    ///   plane z = 8:   y = 11   # # . + + + + # #     # the U's arms (joined at z = 1..=2)
+    ///                  y = 10   # # . . s + . # #     s the speck, + the bridge
+    ///                          x = 6 7 8 9 10 11 12 13
+    /// ```
+    #[test]
+    fn a_bridge_touching_what_stays_twice_is_refused() {
+        let conn = Connectivity::Six;
+        let mut vol = MaskVolume::new([20, 20, 12], Frame::identity());
+        for (x, y, z) in (0..20 * 20 * 12).map(|k| (k % 20, (k / 20) % 20, k / 400)) {
+            let arm = (6..=7).contains(&x) || (12..=13).contains(&x);
+            let bottom = (6..=13).contains(&x) && (1..=2).contains(&z);
+            let u = (arm && (1..=9).contains(&z) || bottom) && (9..=11).contains(&y);
+            vol.set(x, y, z, u);
+        }
+        vol.set(10, 10, 8, true);
+        let side = Side::solid(conn);
+        let owner = speck_owner(&vol, [10, 10, 8]);
+        let twice = [
+            [11, 10, 8],
+            [11, 11, 8],
+            [10, 11, 8],
+            [9, 11, 8],
+            [8, 11, 8],
+        ];
+        assert_eq!(betti(&vol, conn), [2, 0, 0]);
+        set_all(&mut vol, &twice, true);
+        assert_eq!(betti(&vol, conn), [1, 1, 0], "joined into a ring");
+        set_all(&mut vol, &twice, false);
+        let unchanged = samples(&vol);
+        assert!(!verify_join(&mut vol, side, &twice, &owner, 0));
+        assert!(
+            samples(&vol) == unchanged,
+            "the refused bridge is flipped back"
+        );
+        let once = [[9, 10, 8], [8, 10, 8]];
+        assert!(verify_join(&mut vol, side, &once, &owner, 0));
+        assert_eq!(betti(&vol, conn), [1, 0, 0]);
+    }
+
+    /// The bookkeeping of a solid speck's removal: it is the one part that goes.
+    fn speck_owner(vol: &MaskVolume, speck: [i64; 3]) -> Owner {
+        let (parts, labels) = label(vol, Side::solid(Connectivity::Six)).unwrap();
+        let k = parts.iter().position(|p| p.seed == speck).unwrap();
+        Owner::new(labels, &[k], parts.len())
+    }
+
+    fn betti(vol: &MaskVolume, conn: Connectivity) -> [u64; 3] {
+        let g = vol.genus(conn).unwrap();
+        [g.b0, g.b1, g.b2]
+    }
+
+    /// Every sample of the volume, x fastest.
+    fn samples(vol: &MaskVolume) -> Vec<bool> {
+        let [nx, ny, nz] = vol.dims.map(|n| n as i64);
+        (0..nx * ny * nz)
+            .map(|k| vol.get(k % nx, (k / nx) % ny, k / (nx * ny)))
+            .collect()
     }
 }

@@ -374,16 +374,8 @@ fn close_handle_by<'l>(
         LoopKind::Reeb => l.cross.as_ref(),
         LoopKind::Cross => l.reeb.as_ref(),
     };
-    // Without a partner loop, the side the loop goes round was judged from its fan alone: if
-    // no wall of that kind closes it, try the other kind (every wall is verified either way).
-    let ops_for = |lp: &Loop, has_partner: bool| {
-        let op = operation_for(lp);
-        if !has_partner && opts.mode == Mode::Both {
-            vec![op, opposite(op)]
-        } else {
-            vec![op]
-        }
-    };
+    let ops_for =
+        |lp: &Loop, has_partner: bool| ops_to_try(operation_for(lp), has_partner, opts.mode);
     for &(which, lp) in candidates {
         let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
         let ops = ops_for(lp, !partner.is_empty());
@@ -411,7 +403,6 @@ fn close_handle_by<'l>(
         }
     };
     let ops = ops_for(&found, true);
-    let ops: Vec<Operation> = ops.into_iter().filter(|&op| opts.mode.allows(op)).collect();
     if let Some((a, w)) = close_loop(
         vol,
         conn,
@@ -442,11 +433,41 @@ fn close_handle_by<'l>(
     None
 }
 
+/// The operations tried on a loop, of those the mode allows: the one the side it goes round
+/// calls for, and the other too when the loop has no partner (its side was then judged from its
+/// fan alone: if no wall of that kind closes it, one of the other kind may; every wall is
+/// verified either way).
+fn ops_to_try(op: Operation, has_partner: bool, mode: Mode) -> Vec<Operation> {
+    let mut ops = vec![op];
+    if !has_partner && mode == Mode::Both {
+        ops.push(opposite(op));
+    }
+    ops.retain(|&o| mode.allows(o));
+    ops
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::grid::Frame;
     use crate::loops::Encloses;
+
+    /// With a partner a loop gets the operation its side calls for; without one, in mode both,
+    /// the other after it; never one its mode forbids.
+    #[test]
+    fn a_loop_gets_the_operations_its_partner_and_mode_allow() {
+        use Operation::{Collapse, Pinch};
+        for op in [Collapse, Pinch] {
+            assert_eq!(ops_to_try(op, true, Mode::Both), [op]);
+            assert_eq!(ops_to_try(op, false, Mode::Both), [op, opposite(op)]);
+            for has_partner in [true, false] {
+                let fill = ops_to_try(op, has_partner, Mode::FillOnly);
+                assert_eq!(fill, (op == Collapse).then_some(op).as_slice());
+                let cut = ops_to_try(op, has_partner, Mode::CutOnly);
+                assert_eq!(cut, (op == Pinch).then_some(op).as_slice());
+            }
+        }
+    }
 
     fn x_edges(points: &[[i64; 3]]) -> Vec<Vertex> {
         points.iter().map(|&p| Vertex { p, axis: 0 }).collect()
