@@ -190,6 +190,22 @@ fn far_specks_are_deleted_and_a_near_one_bridged() {
     }
 }
 
+/// The phase runs only when asked: with no option of it, the specks and the cube stay and the
+/// report has no count after it; with one, it does.
+#[test]
+fn the_phase_runs_only_when_asked() {
+    let vol = ball_and_specks();
+    let (done, mask) = run(&vol, &options(Connectivity::Six, 0.0));
+    assert_eq!(done.outcome.parts.after, None);
+    assert_eq!(mask, common::mask_of(&vol, 0.0));
+    let opts = SimplifyOptions {
+        min_cavity: Some(1),
+        ..options(Connectivity::Six, 0.0)
+    };
+    let (done, _) = run(&vol, &opts);
+    assert_eq!(done.outcome.parts.after, Some((5, 0)));
+}
+
 #[test]
 fn a_cavity_behind_a_thin_wall_is_opened_and_a_small_one_filled() {
     // A box shell [3, 19]³ two samples thick round a cavity of 13³ samples, its outer layer
