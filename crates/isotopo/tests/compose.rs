@@ -7,7 +7,7 @@ mod common;
 use common::oracle::betti;
 use common::{Rng, BOTH};
 use isotopo::compose::Composition;
-use isotopo::grid::{Axis, MaskVolume};
+use isotopo::grid::Axis;
 use isotopo::progress::NoProgress;
 use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;
@@ -126,9 +126,7 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> ((usize, usize), [u64; 4])
 
 /// The well-composed step alone, on the masks of the case's volume.
 fn compose_alone(c: &Case, conn: Connectivity) -> Composition {
-    let mut v = c.vol.clone();
-    let opts = common::opts(c.iso, conn);
-    let mut masks = MaskVolume::from_reader(&mut v, &opts, Axis::Z, None, &NoProgress).unwrap();
+    let mut masks = common::masks(&c.vol, c.iso, conn, Axis::Z);
     isotopo::compose::compose(&mut masks, conn, None, &NoProgress).unwrap()
 }
 

@@ -38,11 +38,6 @@ fn volume_of(dims: [usize; 3], inside: &[bool]) -> InMemoryVolume {
     })
 }
 
-fn masks(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> MaskVolume {
-    let mut v = vol.clone();
-    MaskVolume::from_reader(&mut v, &common::opts(iso, conn), axis, None, &NoProgress).unwrap()
-}
-
 /// The loops of every handle of the volume, each measured exactly up to `tau` (edges).
 fn handle_loops(
     vol: &InMemoryVolume,
@@ -93,7 +88,7 @@ fn check(
     );
     let before_bits = bits(vol, iso);
     let before = betti(&before_bits, dims, conn);
-    let mut m = masks(vol, iso, conn, axis);
+    let mut m = common::masks(vol, iso, conn, axis);
     let out = simplify(&mut m, opts, &Affine::IDENTITY, &NoProgress).map_err(|e| e.to_string())?;
 
     // The edits, applied to the original samples, give the result.
@@ -307,7 +302,7 @@ fn check(
         }
     }
     // 5. Idempotent.
-    let mut again = masks(&result, 0.0, conn, axis);
+    let mut again = common::masks(&result, 0.0, conn, axis);
     let second =
         simplify(&mut again, opts, &Affine::IDENTITY, &NoProgress).map_err(|e| e.to_string())?;
     if !second.edits.is_empty() {
@@ -530,11 +525,11 @@ fn max_ratio_keeps_long_skinny_handles() {
         let ratio = a.max(b) / a.min(b);
         assert!(ratio > 2.0, "the ring is skinny: {a} vs {b}");
         opts.max_ratio = Some(ratio);
-        let mut m = masks(&vol, 0.0, conn, Axis::Z);
+        let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
         assert_eq!(out.removed.len(), 1, "ratio {ratio}: {:?}", out.kept);
         opts.max_ratio = Some(2.0);
-        let mut m = masks(&vol, 0.0, conn, Axis::Z);
+        let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
         assert!(out.removed.is_empty());
         // What changed is the well-composed step's.
@@ -808,7 +803,7 @@ fn intra_ribbon_handles_are_counted_once() {
     };
     let vol = shape(true);
     let conn = Connectivity::Six;
-    let mut m = masks(&vol, 0.0, conn, Axis::Z);
+    let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
     let found = isotopo::sweep::find_handles(&mut m, Axis::Z, conn, &NoProgress).unwrap();
     let kinds: Vec<_> = found.handles.iter().map(|h| h.located.kind).collect();
     use isotopo::sweep::HandleKind::{IntraRibbon, ReebCycle};
@@ -819,13 +814,13 @@ fn intra_ribbon_handles_are_counted_once() {
     );
 
     let opts = options(8.0, Mode::Both, conn);
-    let mut m = masks(&vol, 0.0, conn, Axis::Z);
+    let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
     let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
     assert_eq!((out.removed.len(), out.kept.len()), (1, 1));
     assert!(out.passes >= 2, "{} passes", out.passes);
     assert_eq!(out.intra_ribbon, 1);
     // The ring alone: its Reeb cycle is not counted as intra-ribbon.
-    let mut m = masks(&shape(false), 0.0, conn, Axis::Z);
+    let mut m = common::masks(&shape(false), 0.0, conn, Axis::Z);
     let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
     assert_eq!((out.removed.len(), out.kept.len()), (1, 0));
     assert_eq!(out.intra_ribbon, 0);
@@ -852,7 +847,7 @@ fn every_sample_a_wall_keeps_changed_is_needed() {
                 well_composed: false,
                 ..SimplifyOptions::default()
             };
-            let mut m = masks(&vol, iso, conn, Axis::Z);
+            let mut m = common::masks(&vol, iso, conn, Axis::Z);
             let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
             let mut mask = bits(&vol, iso);
             let at =

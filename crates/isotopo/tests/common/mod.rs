@@ -6,6 +6,8 @@ pub mod oracle;
 pub mod shapes;
 pub mod systole;
 
+use isotopo::grid::{Axis, MaskVolume};
+use isotopo::progress::NoProgress;
 use isotopo::topology::{genus, Connectivity, GenusReport, Inside, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;
 
@@ -95,6 +97,12 @@ pub fn run_genus(vol: &InMemoryVolume, iso: f64, conn: Connectivity) -> GenusRep
 }
 
 /// Inside mask of a volume (value > iso).
+/// The masks of `vol` at `iso` (inside above), planes across `axis`.
+pub fn masks(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> MaskVolume {
+    let mut v = vol.clone();
+    MaskVolume::from_reader(&mut v, &opts(iso, conn), axis, None, &NoProgress).unwrap()
+}
+
 pub fn mask_of(vol: &InMemoryVolume, iso: f64) -> Vec<bool> {
     let [nx, ny, nz] = vol.dims();
     let mut m = Vec::with_capacity(nx * ny * nz);
