@@ -283,6 +283,18 @@ pub struct SliceCache {
     /// [`SLICE_CACHE_BYTES`]).
     bytes: usize,
     budget: usize,
+    /// How many contour vertices, cheap-loop vertices and undecided races the cache keeps
+    /// before forgetting them all ([`MAX_CONTOUR_VERTICES`], [`MAX_CHEAP_VERTICES`],
+    /// [`MAX_UNDECIDED`]; fields so a test can bound them small).
+    limits: CacheLimits,
+}
+
+/// See [`SliceCache::limits`].
+#[derive(Clone, Copy)]
+struct CacheLimits {
+    contour_vertices: usize,
+    cheap_vertices: usize,
+    undecided: usize,
 }
 
 /// Undecided races a cache remembers (forgotten all at once beyond).
@@ -324,6 +336,11 @@ impl SliceCache {
             clock: 0,
             bytes: 0,
             budget: SLICE_CACHE_BYTES,
+            limits: CacheLimits {
+                contour_vertices: MAX_CONTOUR_VERTICES,
+                cheap_vertices: MAX_CHEAP_VERTICES,
+                undecided: MAX_UNDECIDED,
+            },
         }
     }
 
@@ -386,7 +403,7 @@ impl SliceCache {
         let walked = crate::surface::search::walk_contour(top, start, w)?;
         let keys: FastMap<u64, ()> = walked.iter().map(|v| (v.key(), ())).collect();
         let keys = std::sync::Arc::new(keys);
-        if self.contour_vertices + keys.len() > MAX_CONTOUR_VERTICES {
+        if self.contour_vertices + keys.len() > self.limits.contour_vertices {
             self.contours.clear();
             self.contour_vertices = 0;
         }
@@ -403,7 +420,7 @@ impl SliceCache {
 
     /// Keeps a cheap loop for the cut of key `key`, in place of any kept before.
     fn keep_cheap(&mut self, key: u64, lp: &[Vertex]) {
-        if self.cheap_vertices + lp.len() > MAX_CHEAP_VERTICES {
+        if self.cheap_vertices + lp.len() > self.limits.cheap_vertices {
             self.cheap.clear();
             self.cheap_vertices = 0;
         }
@@ -1133,7 +1150,7 @@ fn cross_is_smaller(
     }
     let race = race(top, cache, h, searcher, p, limits);
     if matches!(race, Race::Undecided) {
-        if cache.undecided.len() >= MAX_UNDECIDED {
+        if cache.undecided.len() >= cache.limits.undecided {
             cache.undecided.clear();
         }
         cache.undecided.insert(key, ());
@@ -2016,6 +2033,66 @@ mod tests {
             assert_eq!(cubes(&cache.slices[&s].0), cubes(&fresh), "slice {s}");
         }
         assert_eq!(changed, 4, "slices 5 ..= 8 forgotten, the others kept");
+    }
+
+    /// The contours and cheap loops a cache keeps stay within their limits: past one, all are
+    /// forgotten and counting starts again, and the count is always that of what is held.
+    /// A sponge's contours, one per plane, under a limit of about three of them; cheap loops
+    /// kept by key, one key kept twice (the second replaces the first).
+    #[test]
+    fn a_caches_contours_and_cheap_loops_stay_within_their_limits() {
+        let conn = Connectivity::Six;
+        let vol = sponge(16, 0x2545_f491_4f6c_dd1d);
+        let mut cache = SliceCache::new(conn);
+        let mut g = Graph::new(&vol, cases(conn));
+        let starts: Vec<(Vertex, i64)> = (0..16)
+            .filter_map(|w| {
+                let p = (0..15 * 16)
+                    .map(|k| [k % 15, k / 15, w])
+                    .find(|&[x, y, z]| vol.get(x, y, z) != vol.get(x + 1, y, z))?;
+                Some((Vertex { p, axis: 0 }, w))
+            })
+            .collect();
+        let sizes: Vec<usize> = starts
+            .iter()
+            .map(|&(v, w)| cache.contour(&mut g, v, w).unwrap().len())
+            .collect();
+        assert!(sizes.len() > 10, "{sizes:?}");
+        let held = |cache: &SliceCache| cache.contours.values().map(|c| c.len()).sum::<usize>();
+        assert_eq!(cache.contour_vertices, held(&cache));
+        let limit = 3 * sizes.iter().max().unwrap();
+        let mut cache = SliceCache::new(conn);
+        cache.limits.contour_vertices = limit;
+        let mut cleared = 0;
+        for &(v, w) in &starts {
+            let before = cache.contours.len();
+            cache.contour(&mut g, v, w).unwrap();
+            cleared += usize::from(cache.contours.len() <= before);
+            assert_eq!(cache.contour_vertices, held(&cache), "plane {w}");
+            assert!(cache.contour_vertices <= limit, "plane {w}");
+            assert!(cache.contours.contains_key(&(w, v.key())), "plane {w}");
+        }
+        assert!(cleared >= 2, "forgotten {cleared} times");
+
+        let lp = |n: usize| -> Vec<Vertex> {
+            (0..n as i64)
+                .map(|i| Vertex {
+                    p: [i, 0, 0],
+                    axis: 1,
+                })
+                .collect()
+        };
+        let mut cache = SliceCache::new(conn);
+        cache.limits.cheap_vertices = 20;
+        let held = |cache: &SliceCache| cache.cheap.values().map(|c| c.len()).sum::<usize>();
+        for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 7), (4, 9), (5, 20)] {
+            cache.keep_cheap(key, &lp(n));
+            assert_eq!(cache.cheap_vertices, held(&cache), "key {key}");
+            assert!(cache.cheap_vertices <= 20, "key {key}");
+            assert_eq!(cache.kept_cheap(key), Some(lp(n)), "key {key}");
+        }
+        // 6 + 8, then 4 in place of 6 (12 held), 7 (19), then 9 and 20 each forget all.
+        assert_eq!(cache.cheap.len(), 1);
     }
 
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
