@@ -2035,6 +2035,92 @@ mod tests {
         assert_eq!(changed, 4, "slices 5 ..= 8 forgotten, the others kept");
     }
 
+    /// A ribbon as a region holds exactly its pieces. The oracle: pieces of one slice that
+    /// share a vertex lie on one sheet within the slice (a vertex's neighbourhood on the surface
+    /// is a disk, cut by the slab in a half-disk), so the ribbons are the classes of pieces
+    /// joined by shared vertices. Each class is one ribbon's, each piece allowed by one
+    /// ribbon only, and no piece of another slice is allowed.
+    #[test]
+    fn a_ribbon_region_holds_the_pieces_its_vertices_join() {
+        let conn = Connectivity::Six;
+        let vol = sponge(16, 0x9e37_79b9_7f4a_7c15);
+        let table = cases(conn);
+        let (mut later_pieces, mut ribbons) = (0, 0);
+        for s in 0..15 {
+            let sl = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+            let mut pieces = Vec::new();
+            let mut classes = crate::unionfind::UnionFind::new(sl.piece_ribbon.len());
+            let mut first_at: FastMap<u64, u32> = FastMap::default();
+            for cube in &sl.cubes {
+                let q = [cube.i as i64 - 1, cube.j as i64 - 1, s];
+                for (k, piece) in table[cube.case as usize].pieces.iter().enumerate() {
+                    let id = cube.first_piece + k as u32;
+                    pieces.push((
+                        PieceRef {
+                            cube: q,
+                            index: k as u8,
+                            part: 0,
+                        },
+                        id,
+                    ));
+                    later_pieces += usize::from(k > 0);
+                    for &e in piece.loops.iter().flatten() {
+                        let key = crate::surface::vertex_of(q, e).key();
+                        let other = *first_at.entry(key).or_insert(id);
+                        classes.union(other, id);
+                    }
+                }
+            }
+            let mut class_of_ribbon: FastMap<u32, u32> = FastMap::default();
+            for ribbon in 0..sl.ribbons.len() as u32 {
+                let region = OneRibbon {
+                    sl: &sl,
+                    slice: s,
+                    ribbon,
+                };
+                for &(p, id) in &pieces {
+                    let class = classes.find(id);
+                    if region.allows(&p) {
+                        let c = *class_of_ribbon.entry(ribbon).or_insert(class);
+                        assert_eq!(c, class, "slice {s}, ribbon {ribbon}, piece {p:?}");
+                    }
+                    let elsewhere = PieceRef {
+                        cube: [p.cube[0], p.cube[1], s + 1],
+                        ..p
+                    };
+                    assert!(!region.allows(&elsewhere));
+                }
+            }
+            for &(p, id) in &pieces {
+                let owners: Vec<u32> = (0..sl.ribbons.len() as u32)
+                    .filter(|&ribbon| {
+                        OneRibbon {
+                            sl: &sl,
+                            slice: s,
+                            ribbon,
+                        }
+                        .allows(&p)
+                    })
+                    .collect();
+                assert_eq!(owners.len(), 1, "slice {s}, piece {p:?}: {owners:?}");
+                assert_eq!(class_of_ribbon[&owners[0]], classes.find(id));
+            }
+            let distinct: std::collections::HashSet<u32> =
+                class_of_ribbon.values().copied().collect();
+            assert_eq!(
+                distinct.len(),
+                sl.ribbons.len(),
+                "slice {s}: one class a ribbon"
+            );
+            ribbons += sl.ribbons.len();
+        }
+        assert!(ribbons > 40, "{ribbons} ribbons");
+        assert!(
+            later_pieces > 24,
+            "{later_pieces} pieces not first in their cube"
+        );
+    }
+
     /// The contours and cheap loops a cache keeps stay within their limits: past one, all are
     /// forgotten and counting starts again, and the count is always that of what is held.
     /// A sponge's contours, one per plane, under a limit of about three of them; cheap loops
