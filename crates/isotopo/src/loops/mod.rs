@@ -1769,6 +1769,57 @@ mod tests {
         }
     }
 
+    /// Linked like a chain's links, two square rings: the loop that runs along one ring (round
+    /// its hole) links the other ring's such loop whichever side that one is pushed to, so it
+    /// says nothing of sides: strength 0 (the difference of the two linkings, not their sum), while each
+    /// ring's own loops still have strength 1 both ways.
+    #[test]
+    fn a_loop_linked_on_both_sides_says_nothing() {
+        let n = 26;
+        let mut vol = MaskVolume::new([n; 3], Frame::identity());
+        let annulus = |u: usize, v: usize, lo: [usize; 2], hi: [usize; 2]| {
+            let within = |w: usize, a: usize, b: usize| (a..b).contains(&w);
+            within(u, lo[0], hi[0])
+                && within(v, lo[1], hi[1])
+                && !(within(u, lo[0] + 2, hi[0] - 2) && within(v, lo[1] + 2, hi[1] - 2))
+        };
+        for (x, y, z) in (0..n * n * n).map(|k| (k % n, (k / n) % n, k / (n * n))) {
+            // Ring a stands in the xz-plane, ring b lies in the xy-plane through a's hole.
+            let a = (12..14).contains(&y) && annulus(x, z, [4, 4], [16, 16]);
+            let b = (9..11).contains(&z) && annulus(x, y, [10, 8], [22, 18]);
+            vol.set(x, y, z, a || b);
+        }
+        let conn = Connectivity::Six;
+        let r = sweep_z(&mut vol, conn);
+        assert_eq!(r.handles.len(), 2);
+        let mut g = Graph::new(&vol, cases(conn));
+        let mut cache = SliceCache::new(conn);
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let mut loops: Vec<[Vec<Vertex>; 2]> = Vec::new();
+        for h in &r.handles {
+            let l = measure(&mut g, &mut cache, h, conn, &affine, Limits::NONE);
+            let (reeb, cross) = (l.reeb.unwrap().vertices, l.cross.unwrap().vertices);
+            assert_eq!(link_strength(&vol, &reeb, &cross), 1);
+            assert_eq!(link_strength(&vol, &cross, &reeb), 1);
+            loops.push([reeb, cross]);
+        }
+        let mut both_sides = 0;
+        for x in &loops[0] {
+            for y in &loops[1] {
+                for (p, q) in [(x, y), (y, x)] {
+                    let m = midpoints(p);
+                    let lin = linking_number(&m, &pushed(&vol, q, true)).abs();
+                    let lout = linking_number(&m, &pushed(&vol, q, false)).abs();
+                    assert_eq!(lin, lout);
+                    both_sides += usize::from(lin == 1);
+                    assert_eq!(link_strength(&vol, p, q), 0);
+                }
+            }
+        }
+        // The loops along the two rings, each with the other.
+        assert_eq!(both_sides, 2);
+    }
+
     /// The key of the races that ended undecided tells cuts apart: random cuts (3 to 40
     /// vertices of a 16³ grid) with their reverses, 20,000 distinct ones in all, have 20,000
     /// distinct keys. A collision would skip the race of a cut never measured.
