@@ -876,9 +876,10 @@ fn cheap_odd_loop(
 fn mend_walk(top: &mut Graph, kept: &[Vertex]) -> Option<Vec<Vertex>> {
     let n = kept.len();
     let on: Vec<bool> = kept.iter().map(|&v| top.around(v).is_some()).collect();
+    // A step holds while it is an edge of the surface (so both ends are on it).
     let step_holds = |top: &mut Graph, k: usize| {
         let (v, w) = (kept[k], kept[(k + 1) % n]);
-        on[k] && on[(k + 1) % n] && top.around(v).is_some_and(|a| a.position(w).is_some())
+        top.around(v).is_some_and(|a| a.position(w).is_some())
     };
     // Start at a vertex still on the surface; walk round to it again.
     let start = on.iter().position(|&x| x)?;
