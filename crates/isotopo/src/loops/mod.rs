@@ -2025,6 +2025,19 @@ mod tests {
         assert!(trimmed > 3, "trimmed {trimmed} times");
     }
 
+    /// A vertex of a contour of every plane of a 16³ volume that the surface crosses (with its
+    /// plane): the first edge along x there that crosses the surface.
+    fn contour_starts(vol: &MaskVolume) -> Vec<(Vertex, i64)> {
+        (0..16)
+            .filter_map(|w| {
+                let p = (0..15 * 16)
+                    .map(|k| [k % 15, k / 15, w])
+                    .find(|&[x, y, z]| vol.get(x, y, z) != vol.get(x + 1, y, z))?;
+                Some((Vertex { p, axis: 0 }, w))
+            })
+            .collect()
+    }
+
     /// Slices cached before an edit are built again once `invalidate` names the planes
     /// edited: the cache then serves the edited surface, slice for slice as a fresh build.
     /// The contours of the planes the forgotten slices hold are forgotten too, and only they
@@ -2037,14 +2050,9 @@ mod tests {
         for s in 0..15 {
             cache.ensure(&vol, s);
         }
-        // A contour of every plane, from an edge along x that crosses the surface.
         let mut g = Graph::new(&vol, cases(conn));
-        for w in 0..16 {
-            let crossing = (0..15 * 16)
-                .map(|k| [k % 15, k / 15, w])
-                .find(|&[x, y, z]| vol.get(x, y, z) != vol.get(x + 1, y, z));
-            let Some(p) = crossing else { continue };
-            cache.contour(&mut g, Vertex { p, axis: 0 }, w).unwrap();
+        for (v, w) in contour_starts(&vol) {
+            cache.contour(&mut g, v, w).unwrap();
         }
         let planes = |cache: &SliceCache| -> std::collections::BTreeSet<i64> {
             cache.contours.keys().map(|&(w, _)| w).collect()
@@ -2183,14 +2191,7 @@ mod tests {
         let vol = sponge(16, 0x2545_f491_4f6c_dd1d);
         let mut cache = SliceCache::new(conn);
         let mut g = Graph::new(&vol, cases(conn));
-        let starts: Vec<(Vertex, i64)> = (0..16)
-            .filter_map(|w| {
-                let p = (0..15 * 16)
-                    .map(|k| [k % 15, k / 15, w])
-                    .find(|&[x, y, z]| vol.get(x, y, z) != vol.get(x + 1, y, z))?;
-                Some((Vertex { p, axis: 0 }, w))
-            })
-            .collect();
+        let starts = contour_starts(&vol);
         let sizes: Vec<usize> = starts
             .iter()
             .map(|&(v, w)| cache.contour(&mut g, v, w).unwrap().len())
