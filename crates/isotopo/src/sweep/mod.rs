@@ -1129,4 +1129,56 @@ mod tests {
         assert_eq!(t[1 << 1 | 1 << 2], 2);
         assert!((1..256).all(|mask| t[mask] == 0 || mask & 1 == 0));
     }
+
+    /// A ribbon's probe names, in the mini-volume's axes ((u', v', w') = (y, z, x)), a corner
+    /// of a cube of the ribbon that a piece of that ribbon owns: mapped back to the volume's
+    /// axes and looked up as the mini-volume's sweep looks it up (the first piece owning it),
+    /// for every ribbon of every slice of random volumes, both connectivities, with the
+    /// mini-volume's origin anywhere.
+    #[test]
+    fn a_ribbons_probe_names_a_corner_of_its_own_pieces() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut checked = 0;
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            for _ in 0..4 {
+                let n = 12;
+                let mut vol = MaskVolume::new([n; 3], Frame::identity());
+                for k in 0..n * n * n {
+                    vol.set(k % n, (k / n) % n, k / (n * n), next() % 2 == 0);
+                }
+                let table = cases(conn);
+                for s in -1..n as i64 {
+                    let cur = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+                    for r in 0..cur.ribbons.len() {
+                        let origin = [next() % 5, next() % 5, next() % 5].map(|x| x as i64 - 2);
+                        let p = ribbon_probe(&cur, r, s, origin, conn).unwrap();
+                        let (x, y, z) = (p.w + origin[0], p.u + origin[1], p.v + origin[2]);
+                        assert_eq!(z, s);
+                        let corner =
+                            (p.corner >> 2) & 1 | (p.corner & 1) << 1 | (p.corner >> 1 & 1) << 2;
+                        let q = cur.find_cube((x + 1) as u32, (y + 1) as u32).unwrap();
+                        let cube = cur.cubes[q];
+                        let k = table[cube.case as usize]
+                            .pieces
+                            .iter()
+                            .position(|pc| pc.corners & (1 << corner) != 0)
+                            .unwrap();
+                        assert_eq!(
+                            cur.piece_ribbon[cube.first_piece as usize + k] as usize,
+                            r,
+                            "{conn:?} slice {s} ribbon {r}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 500, "{checked} ribbons");
+    }
 }
