@@ -2585,14 +2585,15 @@ mod tests {
         let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         let (mut checked, mut not_the_cut) = ([0; 2], 0);
         let sponges: Vec<_> = swept_sponges(&[24, 32], 0x2545_f491_4f6c_dd1d).collect();
-        for ((n, conn, vol, r), size_only) in sponges.iter().flat_map(|s| [(s, false), (s, true)]) {
-            let (n, conn) = (*n, *conn);
+        for (&(n, conn, ref vol, ref r), size_only) in
+            sponges.iter().flat_map(|s| [(s, false), (s, true)])
+        {
             let limits = Limits {
                 below: 1000.0,
                 size_only,
                 ..Limits::NONE
             };
-            let mut g = Graph::new(&vol, cases(conn));
+            let mut g = Graph::new(vol, cases(conn));
             let mut cache = SliceCache::new(conn);
             for h in &r.handles {
                 if !matches!(h.located.volume, CycleVolume::Mini(_)) {
