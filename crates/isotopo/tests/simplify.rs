@@ -868,3 +868,52 @@ fn every_sample_a_wall_keeps_changed_is_needed() {
     assert!(edits > 100, "{edits} samples changed");
     assert!(loose * 100 <= edits, "{loose} of {edits} could flip back");
 }
+
+/// What the report says of the run is about the run: a refused closure is refused for its
+/// topology, never because its wall would change nothing (a single-sample wall already on the
+/// operation's side is not tried), and the stages' seconds are times, none negative, together
+/// within the call's. Random smoothed noise at tau inf, both connectivities.
+#[test]
+fn the_report_counts_real_refusals_and_real_times() {
+    let mut rng = Rng(0x5eed_0f_7e57);
+    let dims = [32, 32, 24];
+    let mut refused = 0;
+    for round in 0..3 {
+        let v = common::smoothed_noise(dims, 1, &mut rng);
+        let iso = common::quantile(&v, [0.35, 0.5, 0.65][round % 3]);
+        let vol = common::volume_from(dims, &v);
+        for conn in BOTH {
+            let opts = SimplifyOptions {
+                surface: common::opts(iso, conn),
+                tau: f64::INFINITY,
+                ..SimplifyOptions::default()
+            };
+            let mut m = common::masks(&vol, iso, conn, Axis::Z);
+            let start = std::time::Instant::now();
+            let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
+            let elapsed = start.elapsed().as_secs_f64();
+            assert_eq!(out.refused, out.refused_by.values().sum::<usize>());
+            assert_eq!(
+                out.refused_by.get("nothing_to_change"),
+                None,
+                "{:?}",
+                out.refused_by
+            );
+            refused += out.refused;
+            let s = &out.seconds;
+            let stages = [s.parts, s.sweep, s.loops, s.closures];
+            assert!(stages.iter().all(|&t| t >= 0.0), "{stages:?}");
+            assert!(
+                stages.iter().sum::<f64>() <= elapsed,
+                "{stages:?} in {elapsed} s"
+            );
+            if !out.removed.is_empty() {
+                assert!(
+                    s.sweep > 0.0 && s.loops > 0.0 && s.closures > 0.0,
+                    "{stages:?}"
+                );
+            }
+        }
+    }
+    assert!(refused > 60, "{refused} closures refused"); // measured 135
+}
