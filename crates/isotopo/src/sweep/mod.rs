@@ -1181,4 +1181,14 @@ mod tests {
         }
         assert!(checked > 500, "{checked} ribbons");
     }
+
+    /// A handle's kind is spelled one way everywhere: its name (the HTML report's) is its
+    /// JSON value (the JSON and CSV reports').
+    #[test]
+    fn a_handle_kinds_name_is_its_json_value() {
+        for kind in [HandleKind::ReebCycle, HandleKind::IntraRibbon] {
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
+        }
+        assert_ne!(HandleKind::ReebCycle.name(), HandleKind::IntraRibbon.name());
+    }
 }
