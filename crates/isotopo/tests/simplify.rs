@@ -875,7 +875,7 @@ fn every_sample_a_wall_keeps_changed_is_needed() {
 /// within the call's. Random smoothed noise at tau inf, both connectivities.
 #[test]
 fn the_report_counts_real_refusals_and_real_times() {
-    let mut rng = Rng(0x5eed_0f_7e57);
+    let mut rng = Rng(0x005e_ed0f_7e57);
     let dims = [32, 32, 24];
     let mut refused = 0;
     for round in 0..3 {

@@ -118,6 +118,7 @@ pub(super) fn certificate_holds(
 mod tests {
     use super::*;
     use crate::progress::NoProgress;
+    use crate::simplify::measure::Caches;
     use crate::simplify::Kept;
     use crate::volume::{BBox, InMemoryVolume};
 
@@ -157,5 +158,84 @@ mod tests {
         assert!(!holds(KeepReason::Size, vec![p.clone(), p.clone()]));
         assert!(!holds(KeepReason::Size, vec![q.clone()]));
         assert!(!holds(KeepReason::ClosureFailed, vec![p, q]));
+    }
+
+    /// A search cut short proves nothing: on a sponge's intra-ribbon handles, certified with
+    /// the searches' budgets (each generator of the ribbon searched for a loop below tau
+    /// crossing it oddly), every handle gets curves or a loop below tau; with budgets of a few
+    /// states, none gets curves, and those whose search found no loop are unsure.
+    #[test]
+    fn a_search_cut_short_proves_nothing() {
+        let n = 20;
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let noise: Vec<f32> = (0..n * n * n)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            })
+            .collect();
+        let sponge = InMemoryVolume::from_fn([n; 3], |x, y, z| {
+            // Each sample with its six neighbours: noise smoothed once.
+            let at = |x: usize, y: usize, z: usize| noise[(z * n + y) * n + x];
+            let (lo, hi) = (
+                |v: usize| v.saturating_sub(1),
+                |v: usize| (v + 1).min(n - 1),
+            );
+            at(x, y, z)
+                + at(lo(x), y, z)
+                + at(hi(x), y, z)
+                + at(x, lo(y), z)
+                + at(x, hi(y), z)
+                + at(x, y, lo(z))
+                + at(x, y, hi(z))
+                - 3.5
+        });
+        let opts = crate::AnalyzeOptions::default();
+        let a = crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap();
+        let conn = Connectivity::Six;
+        // A small tau: the ribbons' generators have no loop below it to find.
+        let limits = Limits {
+            below: 4.0,
+            ..Limits::NONE
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let certified = |budgets: Option<crate::surface::search::Budgets>| {
+            let (mut curves, mut unsure, mut below) = (0, 0, 0);
+            for (h, l) in a.report.handles.iter().zip(&a.loops) {
+                if h.located.ribbon.is_none() {
+                    continue;
+                }
+                let mut caches = Caches::new(conn);
+                if let Some(b) = budgets {
+                    caches.graph.budgets = b;
+                }
+                let mut ribbons = FastMap::default();
+                match certify(
+                    &a.masks,
+                    &h.located,
+                    l,
+                    conn,
+                    limits,
+                    &affine,
+                    &mut caches,
+                    &mut ribbons,
+                ) {
+                    Certificate::Curves(_) => curves += 1,
+                    Certificate::Unsure => unsure += 1,
+                    Certificate::Below(_) => below += 1,
+                    Certificate::Shared => unreachable!("a fresh ribbon set"),
+                }
+            }
+            (curves, unsure, below)
+        };
+        let (curves, unsure, below) = certified(None);
+        assert_eq!(unsure, 0, "{curves} certified, {below} below tau");
+        assert!(curves > 10, "{curves} certified, {below} below tau"); // measured 22 and 75
+        let tiny = crate::surface::search::Budgets { first: 4, exact: 4 };
+        let (curves, unsure, below) = certified(Some(tiny));
+        assert_eq!(curves, 0, "{unsure} unsure, {below} below tau");
+        assert!(unsure > 50, "{unsure} unsure, {below} below tau"); // measured 97 and 0
     }
 }

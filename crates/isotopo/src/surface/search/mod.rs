@@ -81,6 +81,26 @@ pub struct Graph<'a> {
     /// Numbers of each vertex's neighbours, resolved on first use (`UNRESOLVED` until then).
     nbr_num: Vec<[u32; MAX_DEGREE]>,
     scratch: Scratch,
+    /// How many states the loop searches may visit (a field so that a test can run them out).
+    pub(crate) budgets: Budgets,
+}
+
+/// States a loop search may visit before it stops and says its answer is not exact.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Budgets {
+    /// The multi-source phase ([`FIRST_BUDGET`]).
+    pub first: usize,
+    /// The exact phase ([`EXACT_BUDGET`]).
+    pub exact: usize,
+}
+
+impl Default for Budgets {
+    fn default() -> Budgets {
+        Budgets {
+            first: FIRST_BUDGET,
+            exact: EXACT_BUDGET,
+        }
+    }
 }
 
 /// A graph's numbered neighbourhoods, detached from its volume so that they can outlive an edit
@@ -93,6 +113,7 @@ pub struct GraphCache {
     verts: Vec<u64>,
     nbr_num: Vec<[u32; MAX_DEGREE]>,
     scratch: Scratch,
+    pub(crate) budgets: Budgets,
 }
 
 impl GraphCache {
@@ -179,6 +200,7 @@ impl<'a> Graph<'a> {
             verts: c.verts,
             nbr_num: c.nbr_num,
             scratch: c.scratch,
+            budgets: c.budgets,
         }
     }
 
@@ -190,6 +212,7 @@ impl<'a> Graph<'a> {
             verts: self.verts,
             nbr_num: self.nbr_num,
             scratch: self.scratch,
+            budgets: self.budgets,
         }
     }
 
@@ -807,7 +830,7 @@ pub fn odd_loop_with_parities(
             }
         }
     }
-    let mut budget = EXACT_BUDGET;
+    let mut budget = g.budgets.exact;
     let mut exact = true;
     let mut tried: FastMap<u64, ()> = FastMap::default();
     for &s in &sources {
@@ -962,7 +985,7 @@ fn odd_path_through(
     let (gen, start) = start_at(g, bits, si);
     let target = start | goal;
     let mut queue = VecDeque::from([start]);
-    let mut budget = EXACT_BUDGET;
+    let mut budget = g.budgets.exact;
     'bfs: loop {
         let st = queue.pop_front()?;
         if g.scratch.dist[st as usize] as usize >= len || budget == 0 {
@@ -1096,7 +1119,7 @@ fn multi_source(
     }
     // Deepest level that can hold the middle of a loop shorter than `below`.
     let half = |below: usize| below.saturating_sub(1).div_ceil(2);
-    let mut budget = FIRST_BUDGET;
+    let mut budget = g.budgets.first;
     while let Some(st) = queue.pop_front() {
         let (d, src) = (g.scratch.dist[st as usize], g.scratch.source[st as usize]);
         let below = best.map_or(limit, |b| b.0.min(limit));

@@ -18,7 +18,7 @@
 //! edges, a lower bound through every edge: only the vertices of the cut within half the best
 //! of an edge whose bound is below the best need a search of their own.
 
-use super::{simple_cycle, Curves, Graph, Region, EXACT_BUDGET, FIRST_BUDGET};
+use super::{simple_cycle, Curves, Graph, Region};
 use crate::surface::geometry::Geometry;
 use crate::surface::Vertex;
 use std::cmp::Ordering;
@@ -287,7 +287,7 @@ pub fn odd_loop_mm(
         Some(b) => near(g, geo, &curves, region, &b, best_len, &nums),
         None => nums.clone(),
     };
-    let mut budget = EXACT_BUDGET;
+    let mut budget = g.budgets.exact;
     let mut exact = first.conclusive;
     for si in sources {
         let Some(found) = through(g, geo, &curves, region, si, best_len, &mut budget) else {
@@ -329,6 +329,7 @@ fn first_search(
     limit: f64,
 ) -> First {
     let n = nums.len();
+    let mut budget = g.budgets.first;
     let mut s = Search::new(g, geo, curves, region);
     for (i, &vi) in nums.iter().enumerate() {
         s.start(vi << 1, i as u32);
@@ -349,7 +350,6 @@ fn first_search(
     let pos: super::FastMap<u32, usize> = nums.iter().enumerate().map(|(i, &v)| (v, i)).collect();
     let mut best: Option<(f64, u32, usize)> = None;
     let mut settled: Vec<u32> = Vec::new();
-    let mut budget = FIRST_BUDGET;
     while let Some((d, st)) = s.pop() {
         if d >= limit || best.is_some_and(|b| d >= b.0) || budget == 0 {
             break;
