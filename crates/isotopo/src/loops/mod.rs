@@ -2212,6 +2212,15 @@ mod tests {
             assert!(cache.contours.contains_key(&(w, v.key())), "plane {w}");
         }
         assert!(cleared >= 2, "forgotten {cleared} times");
+        // Exactly at the limit nothing is forgotten; one vertex over it, all is.
+        for extra in [0, 1] {
+            let mut cache = SliceCache::new(conn);
+            cache.limits.contour_vertices = sizes[0] + sizes[1] - extra;
+            for &(v, w) in &starts[..2] {
+                cache.contour(&mut g, v, w).unwrap();
+            }
+            assert_eq!(cache.contours.len(), 2 - extra, "limit {} less", extra);
+        }
 
         let lp = |n: usize| -> Vec<Vertex> {
             (0..n as i64)
@@ -2224,14 +2233,17 @@ mod tests {
         let mut cache = SliceCache::new(conn);
         cache.limits.cheap_vertices = 20;
         let held = |cache: &SliceCache| cache.cheap.values().map(|c| c.len()).sum::<usize>();
-        for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 7), (4, 9), (5, 20)] {
+        // 6 + 8, then 4 in place of 6 (12 held), 8 (20: at the limit, all kept), then 9 and
+        // 20 each forget all.
+        let mut kept = Vec::new();
+        for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 8), (4, 9), (5, 20)] {
             cache.keep_cheap(key, &lp(n));
             assert_eq!(cache.cheap_vertices, held(&cache), "key {key}");
             assert!(cache.cheap_vertices <= 20, "key {key}");
             assert_eq!(cache.kept_cheap(key), Some(lp(n)), "key {key}");
+            kept.push(cache.cheap.len());
         }
-        // 6 + 8, then 4 in place of 6 (12 held), 7 (19), then 9 and 20 each forget all.
-        assert_eq!(cache.cheap.len(), 1);
+        assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
     }
 
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
