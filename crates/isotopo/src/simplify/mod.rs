@@ -959,4 +959,29 @@ mod tests {
         }
         assert_eq!(keep_handles_tau(&hs, Metric::Edges, 4), f64::INFINITY);
     }
+
+    /// After the last allowed pass closed something: a handle kept for its size that measured
+    /// below tau (in the metric's unit) is marked kept at the pass limit; one at or above tau,
+    /// or kept for another reason, keeps its reason.
+    #[test]
+    fn only_handles_kept_for_a_size_below_tau_are_stale() {
+        let opts = SimplifyOptions {
+            tau: 10.0,
+            ..SimplifyOptions::default()
+        };
+        let mut failed = kept(4, 2.0);
+        failed.reason = KeepReason::ClosureFailed;
+        let mut list = [(0, kept(4, 20.0)), (1, kept(12, 2.0)), (2, failed)];
+        mark_stale(&mut list, &opts);
+        let reasons = |list: &[(i64, Kept)]| list.iter().map(|(_, k)| k.reason).collect::<Vec<_>>();
+        use KeepReason::*;
+        assert_eq!(reasons(&list), [PassLimit, Size, ClosureFailed]);
+        let mm = SimplifyOptions {
+            metric: Metric::Millimetres,
+            ..opts
+        };
+        let mut list = [(0, kept(4, 20.0)), (1, kept(12, 2.0))];
+        mark_stale(&mut list, &mm);
+        assert_eq!(reasons(&list), [Size, PassLimit]);
+    }
 }
