@@ -14,8 +14,9 @@ code with isotopo (nibabel / pynrrd to read, scikit-image for topology, numpy fo
    kind of wall reaches from its own loop: a
    fan wall (or a peeled one) within its thickness of the loop's fan, whose points lie within a
    quarter of the loop's length of the loop; a wall peeled in a box (`peeled_box`) inside that box;
-   one peeled in that box moved along the other loop (`peeled_along`) within a box that size round
-   a point of the handle's box; every other sample is bit-identical;
+   one peeled in that box moved along the loop's partner (`peeled_along`, the curve crossing it
+   once: the other loop or the cut) within a box that size, moved by at most half the partner's
+   length; every other sample is bit-identical;
 5. simplify run again on its own output changes nothing;
 6. (the runs at tau 20 and inf) the output meshed by scikit-image and VTK and the solid under
    the other connectivity: critical cells as reported, and where the report says well-composed
@@ -129,14 +130,15 @@ def wall_reach_failures(r, flipped, what):
             lo, hi = np.floor(pts.min(0)) - h["thickness"], np.ceil(pts.max(0)) + h["thickness"]
             ok = bool(np.all(q >= lo) and np.all(q <= hi))
         elif h["wall"] == "peeled_along":
-            # The loop's box moved to a point of its other loop (inside the handle's box): the
-            # wall fits in a box that size, round a point of the handle's box.
-            size = np.ceil(pts.max(0)) - np.floor(pts.min(0))
+            # The loop's box (with its margin) moved along the partner, the curve crossing the
+            # loop once: from the vertex they share by at most half the partner (its edge
+            # midpoints step at most 1 voxel on each axis). So the wall fits in a box that size,
+            # within that shift of the loop's box.
+            lo, hi = np.floor(pts.min(0)) - h["thickness"], np.ceil(pts.max(0)) + h["thickness"]
             samples = np.array(h["samples"])
             spread = samples.max(0) - samples.min(0)
-            half = size / 2 + h["thickness"] + 1
-            lo, hi = np.array(h["bbox"]["min"]) - half, np.array(h["bbox"]["max"]) + half
-            ok = bool(np.all(spread <= size + 2 * h["thickness"]) and np.all(q >= lo) and np.all(q <= hi))
+            shift = (h["partner"] or 0) / 2
+            ok = bool(h["partner"] and np.all(spread <= hi - lo) and np.all(q >= lo - shift) and np.all(q <= hi + shift))
         else:
             reach = h["thickness"] + h["length"] / 4 + 1e-6
             ok = bool((np.linalg.norm(pts - q, axis=1) <= reach).any())

@@ -243,20 +243,19 @@ fn check(
                 let (lo, hi) = extent(k);
                 p[k] >= lo - r.thickness && p[k] <= hi + r.thickness
             }),
-            // The loop's box moved to a point of its partner (inside the handle's box): the
-            // wall fits in a box that size, round a point of the handle's box.
+            // The loop's box moved along its partner from the vertex they share, by at most
+            // half the partner (its edge midpoints step at most a voxel on each axis): the
+            // wall fits in a box that size, within that shift of the loop's box.
             "peeled_along" => (0..3).all(|k| {
                 let (lo, hi) = extent(k);
-                let size = hi - lo + 2.0 * r.thickness;
+                let (lo, hi) = (lo - r.thickness, hi + r.thickness);
+                let shift = r.partner.map_or(f64::NAN, |n| n as f64 / 2.0);
                 let spread = r.samples.iter().map(|s| s[k] as f64);
                 let (a, b) = (
                     spread.clone().fold(f64::INFINITY, f64::min),
                     spread.fold(f64::NEG_INFINITY, f64::max),
                 );
-                let half = (hi - lo) / 2.0 + r.thickness + 1.0;
-                b - a <= size
-                    && p[k] >= r.bbox.min[k] as f64 - half
-                    && p[k] <= r.bbox.max[k] as f64 + half
+                b - a <= hi - lo && p[k] >= lo - shift && p[k] <= hi + shift
             }),
             _ => {
                 let reach = r.thickness + r.length as f64 / 4.0 + 1e-6;

@@ -58,16 +58,18 @@ impl HtmlHandle {
 
     /// A handle `simplify` removed: the loop it closed, and its wall.
     pub fn from_removed(id: usize, r: &Removed) -> HtmlHandle {
-        let closed_is_reeb = r.closed == crate::simplify::LoopKind::Reeb;
+        use crate::simplify::LoopKind;
+        // The closed loop's length in mm, under its own name (a basis curve's under neither).
+        let closed_mm = |kind: LoopKind| (r.closed == kind).then_some(r.length_mm);
         HtmlHandle {
             id,
             surface: None,
             kind: r.kind.name().to_string(),
             size: Some(r.size),
             reeb: r.reeb,
-            reeb_mm: closed_is_reeb.then_some(r.length_mm),
+            reeb_mm: closed_mm(LoopKind::Reeb),
             cross: r.cross,
-            cross_mm: (!closed_is_reeb).then_some(r.length_mm),
+            cross_mm: closed_mm(LoopKind::Cross),
             encloses: Some(
                 match name(&r.operation).as_str() {
                     "collapse" => "void",

@@ -2735,4 +2735,42 @@ mod tests {
             "{in_box} of {n} within the box grown by 4"
         );
     }
+
+    /// A peeled wall moved along its loop's partner lies within half the partner of the loop
+    /// (simplify's `Removed::partner`), because curves that cross once share a vertex and a
+    /// curve's consecutive edge midpoints are at most a voxel apart on each axis. Checked on
+    /// every handle's loops and basis curves (its cut and first loop) on sponges.
+    #[test]
+    fn crossing_curves_share_a_vertex_and_step_at_most_a_voxel() {
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let apart =
+            |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max);
+        let mut pairs = 0;
+        for (n, conn, vol, r) in swept_sponges(&[16, 20, 24], 0x0bad_5eed_1234_5678) {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            for h in &r.handles {
+                let l = measure(&mut g, &mut cache, h, conn, &affine, Limits::NONE);
+                let loops = l
+                    .reeb
+                    .iter()
+                    .zip(&l.cross)
+                    .map(|(a, b)| (&a.vertices, &b.vertices));
+                for (a, b) in loops.chain(l.basis.iter().map(|(p, q)| (p, q))) {
+                    for c in [a, b] {
+                        for (k, v) in c.iter().enumerate() {
+                            let next = c[(k + 1) % c.len()].midpoint();
+                            assert!(apart(v.midpoint(), next) <= 1.0, "n {n} {conn:?}: a step");
+                        }
+                    }
+                    assert!(
+                        a.iter().any(|v| b.contains(v)),
+                        "n {n} {conn:?}: no shared vertex"
+                    );
+                    pairs += 1;
+                }
+            }
+        }
+        assert!(pairs > 1000, "{pairs} pairs");
+    }
 }

@@ -51,7 +51,7 @@ use certify::{certificate_holds, certify, Certificate};
 use measure::{memo_key, Caches, Lasting};
 pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
 use plan::{plan, wall_near_loop};
-use removal::{removal, Closure};
+use removal::removal;
 use walls::{close_handle, Refused};
 use write::final_edits;
 pub(crate) use write::{write_edited, SliceEditor};
@@ -195,6 +195,10 @@ pub enum LoopKind {
     Reeb,
     /// The cross loop, across the handle.
     Cross,
+    /// Another curve found while measuring the handle, crossing one of its loops once (a
+    /// top-level handle's cut, a contour of its slice; an intra-ribbon handle's first loop round
+    /// its cycle or across it): closing it removes the handle too.
+    Basis,
 }
 
 /// A handle that was removed.
@@ -217,6 +221,10 @@ pub struct Removed {
     pub operation: Operation,
     /// Length of the closed loop (voxel edges and mm).
     pub length: usize,
+    /// Length (edges) of its partner, the curve crossing it once whose ring the wall cuts (the
+    /// handle's other loop, or its cut), if it had one: a `peeled_along` wall lies in the
+    /// closed loop's box moved along the partner, by at most half of it.
+    pub partner: Option<usize>,
     /// The closed loop's length in millimetres.
     pub length_mm: f64,
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
@@ -225,7 +233,7 @@ pub struct Removed {
     /// How the wall was made: `fan` (the samples near the loop's spanning fan), `single_sample`,
     /// `peeled` (the samples near the fan thinned by simple samples and cut at the one sample
     /// that cuts the ring the loop goes round), `peeled_box` (the same in a box round the
-    /// loop) or `peeled_along` (the same in that box moved along the other loop, where the
+    /// loop) or `peeled_along` (the same in that box moved along the `partner`, where the
     /// ring is cut away from this loop: its samples may lie far from `points`).
     pub wall: &'static str,
     /// Samples this closure flipped: how many, and which (original coordinates).
@@ -711,11 +719,12 @@ impl<'a> Run<'a> {
         let (opts, affine) = (&self.opts, self.affine);
         let graph = &mut caches.graph;
         let done = close_handle(vol, opts, &l, &candidates, affine, graph, &mut self.refused);
-        let Some((which, lp, applied, wall_kind)) = done else {
+        let Some(closed) = done else {
             caches.failed.insert(key, ());
             self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
             return None;
         };
+        let applied = &closed.applied;
         if let Some(b) = &mut self.budget {
             *b = b.saturating_sub(applied.handles);
         }
@@ -725,16 +734,10 @@ impl<'a> Run<'a> {
             self.original.entry(*q).or_insert(!applied.op.target());
         }
         caches.slices.invalidate(wall.min[2], wall.max[2]);
-        let closure = Closure {
-            which,
-            lp: &lp,
-            applied: &applied,
-            wall: wall_kind,
-        };
         let at_pass = (self.passes, s);
         self.removed
-            .push(removal(vol, h, &l, closure, affine, at_pass));
-        self.wall_samples.push(applied.changed);
+            .push(removal(vol, h, &l, &closed, affine, at_pass));
+        self.wall_samples.push(closed.applied.changed);
         Some(wall)
     }
 

@@ -1,10 +1,9 @@
 //! The report of a handle removed.
 
-use super::walls::Wall;
-use super::{LoopKind, Removed};
-use crate::closure::{self};
+use super::walls::Closed;
+use super::Removed;
 use crate::grid::MaskVolume;
-use crate::loops::{HandleLoops, Loop, Metric};
+use crate::loops::{HandleLoops, Metric};
 use crate::sweep::LocatedHandle;
 use crate::volume::Affine;
 
@@ -30,26 +29,19 @@ pub(super) fn max_distance(
     worst
 }
 
-/// A closure done: which of the handle's loops, the loop, the wall's samples and how it was made.
-pub(super) struct Closure<'c> {
-    pub(super) which: LoopKind,
-    pub(super) lp: &'c Loop,
-    pub(super) applied: &'c closure::Applied,
-    pub(super) wall: Wall,
-}
-
 /// The report of a handle removed by `closure` at `(pass, slice)`, in original coordinates.
 pub(super) fn removal(
     vol: &MaskVolume,
     h: &LocatedHandle,
     l: &HandleLoops,
-    closure: Closure,
+    closure: &Closed,
     affine: &Affine,
     (pass, slice): (usize, i64),
 ) -> Removed {
-    let Closure {
+    let Closed {
         which,
         lp,
+        partner,
         applied,
         wall,
     } = closure;
@@ -65,10 +57,11 @@ pub(super) fn removal(
         reeb: l.reeb.as_ref().map(|x| x.length),
         cross: l.cross.as_ref().map(|x| x.length),
         kind: h.kind,
-        closed: which,
+        closed: *which,
         operation: applied.op,
         length: lp.length,
         length_mm: lp.length_mm,
+        partner: *partner,
         thickness: wall.thickness(),
         wall: wall.name(),
         samples_changed: changed.len(),

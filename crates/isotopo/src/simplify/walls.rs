@@ -336,11 +336,22 @@ pub(super) fn close_handle<'l>(
     affine: &Affine,
     graph: &mut GraphCache,
     refused: &mut Refused,
-) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+) -> Option<Closed<'l>> {
     let mut by = |reach: WallReach| {
         close_handle_by(vol, opts, l, candidates, affine, (graph, refused), reach)
     };
     by(WallReach::Across).or_else(|| by(WallReach::Along))
+}
+
+/// A handle closed: which curve, the curve, its partner's length, the wall and what it did.
+pub(super) struct Closed<'l> {
+    pub(super) which: LoopKind,
+    pub(super) lp: std::borrow::Cow<'l, Loop>,
+    /// Length (edges) of the curve crossing `lp` once that the walls aimed to cut, if any: a
+    /// wall peeled along it lies in `lp`'s box moved by at most half of it.
+    pub(super) partner: Option<usize>,
+    pub(super) applied: closure::Applied,
+    pub(super) wall: Wall,
 }
 
 /// Walls the local check refused: how many, and why (by [`closure::Refusal::name`]).
@@ -368,26 +379,36 @@ fn close_handle_by<'l>(
     affine: &Affine,
     (graph, refused): (&mut GraphCache, &mut Refused),
     reach: WallReach,
-) -> Option<(LoopKind, std::borrow::Cow<'l, Loop>, closure::Applied, Wall)> {
+) -> Option<Closed<'l>> {
     let conn = opts.surface.connectivity;
+    // The candidates are the handle's Reeb and cross loops, each the other's partner.
     let partner_of = |which: LoopKind| match which {
         LoopKind::Reeb => l.cross.as_ref(),
         LoopKind::Cross => l.reeb.as_ref(),
+        LoopKind::Basis => None,
     };
     let ops_for =
         |lp: &Loop, has_partner: bool| ops_to_try(operation_for(lp), has_partner, opts.mode);
     for &(which, lp) in candidates {
         let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
         let ops = ops_for(lp, !partner.is_empty());
-        if let Some((a, w)) = close_loop(vol, conn, lp, partner, &ops, (reach, graph, refused)) {
-            return Some((which, std::borrow::Cow::Borrowed(lp), a, w));
+        if let Some((applied, wall)) =
+            close_loop(vol, conn, lp, partner, &ops, (reach, graph, refused))
+        {
+            return Some(Closed {
+                which,
+                lp: std::borrow::Cow::Borrowed(lp),
+                partner: (!partner.is_empty()).then_some(partner.len()),
+                applied,
+                wall,
+            });
         }
     }
     // The other loop of the shortest candidate, however long.
     let &(which, lp) = candidates.first()?;
     let other = match which {
         LoopKind::Reeb => LoopKind::Cross,
-        LoopKind::Cross => LoopKind::Reeb,
+        LoopKind::Cross | LoopKind::Basis => LoopKind::Reeb,
     };
     let found = match partner_of(which) {
         Some(x) => std::borrow::Cow::Borrowed(x),
@@ -403,7 +424,7 @@ fn close_handle_by<'l>(
         }
     };
     let ops = ops_for(&found, true);
-    if let Some((a, w)) = close_loop(
+    if let Some((applied, wall)) = close_loop(
         vol,
         conn,
         &found,
@@ -411,11 +432,19 @@ fn close_handle_by<'l>(
         &ops,
         (reach, graph, refused),
     ) {
-        return Some((other, found, a, w));
+        return Some(Closed {
+            which: other,
+            lp: found,
+            partner: Some(lp.vertices.len()),
+            applied,
+            wall,
+        });
     }
     // Last, the handle's two curves that cross once (its cut and the loop round its cycle): a
     // closure of either removes the handle too, and the cut, a contour, spans a flat region.
+    // Either may be one of the loops reported, else it is named a basis curve.
     let (p, q) = l.basis.as_ref()?;
+    let is = |lp: Option<&Loop>, x: &[Vertex]| lp.is_some_and(|lp| lp.vertices == x);
     for (x, y) in [(p, q), (q, p)] {
         let geometry = Geometry {
             affine,
@@ -426,8 +455,22 @@ fn close_handle_by<'l>(
             .into_iter()
             .filter(|&op| opts.mode.allows(op))
             .collect();
-        if let Some((a, w)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused)) {
-            return Some((other, std::borrow::Cow::Owned(lx), a, w));
+        if let Some((applied, wall)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused))
+        {
+            let which = if is(l.reeb.as_ref(), x) {
+                LoopKind::Reeb
+            } else if is(l.cross.as_ref(), x) {
+                LoopKind::Cross
+            } else {
+                LoopKind::Basis
+            };
+            return Some(Closed {
+                which,
+                lp: std::borrow::Cow::Owned(lx),
+                partner: Some(y.len()),
+                applied,
+                wall,
+            });
         }
     }
     None
