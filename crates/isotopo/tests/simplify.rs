@@ -825,6 +825,23 @@ fn intra_ribbon_handles_are_counted_once() {
     assert_eq!(out.intra_ribbon, 0);
 }
 
+/// `simplify --tau inf` along z in memory, with or without the well-composed step.
+fn simplify_inf(
+    vol: &InMemoryVolume,
+    iso: f64,
+    conn: Connectivity,
+    well_composed: bool,
+) -> Outcome {
+    let opts = SimplifyOptions {
+        surface: common::opts(iso, conn),
+        tau: f64::INFINITY,
+        well_composed,
+        ..SimplifyOptions::default()
+    };
+    let mut m = common::masks(vol, iso, conn, Axis::Z);
+    simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap()
+}
+
 /// Walls are trimmed to what holds the handles closed: after `simplify --tau inf` without the
 /// well-composed step, on random smoothed noise, every sample the walls changed is needed:
 /// flipping it back alone changes the Betti numbers (by the oracle) of the chosen
@@ -835,19 +852,9 @@ fn every_sample_a_wall_keeps_changed_is_needed() {
     let mut rng = Rng(0x7a11_5eed);
     let dims = [18, 16, 14];
     let (mut edits, mut loose) = (0, 0);
-    for round in 0..6 {
-        let v = common::smoothed_noise(dims, 2, &mut rng);
-        let iso = common::quantile(&v, [0.35, 0.5, 0.65][round % 3]);
-        let vol = common::volume_from(dims, &v);
+    for (vol, iso) in common::noise_rounds(&mut rng, dims, 2, 6) {
         for conn in BOTH {
-            let opts = SimplifyOptions {
-                surface: common::opts(iso, conn),
-                tau: f64::INFINITY,
-                well_composed: false,
-                ..SimplifyOptions::default()
-            };
-            let mut m = common::masks(&vol, iso, conn, Axis::Z);
-            let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
+            let out = simplify_inf(&vol, iso, conn, false);
             let mut mask = bits(&vol, iso);
             let at =
                 |q: [i64; 3]| (q[0] as usize) + dims[0] * (q[1] as usize + dims[1] * q[2] as usize);
@@ -877,19 +884,10 @@ fn the_report_counts_real_refusals_and_real_times() {
     let mut rng = Rng(0x005e_ed0f_7e57);
     let dims = [32, 32, 24];
     let mut refused = 0;
-    for round in 0..3 {
-        let v = common::smoothed_noise(dims, 1, &mut rng);
-        let iso = common::quantile(&v, [0.35, 0.5, 0.65][round % 3]);
-        let vol = common::volume_from(dims, &v);
+    for (vol, iso) in common::noise_rounds(&mut rng, dims, 1, 3) {
         for conn in BOTH {
-            let opts = SimplifyOptions {
-                surface: common::opts(iso, conn),
-                tau: f64::INFINITY,
-                ..SimplifyOptions::default()
-            };
-            let mut m = common::masks(&vol, iso, conn, Axis::Z);
             let start = std::time::Instant::now();
-            let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
+            let out = simplify_inf(&vol, iso, conn, true);
             let elapsed = start.elapsed().as_secs_f64();
             assert_eq!(out.refused, out.refused_by.values().sum::<usize>());
             assert_eq!(

@@ -81,6 +81,23 @@ pub fn quantile(v: &[f32], q: f64) -> f64 {
     (s[k] as f64 + s[(k + 1).min(s.len() - 1)] as f64) / 2.0
 }
 
+/// `rounds` volumes of smoothed noise (`passes` of smoothing), each with an isovalue at the
+/// 35th, 50th or 65th percentile in turn: thick, balanced and thin material.
+pub fn noise_rounds(
+    rng: &mut Rng,
+    dims: [usize; 3],
+    passes: usize,
+    rounds: usize,
+) -> Vec<(InMemoryVolume, f64)> {
+    (0..rounds)
+        .map(|round| {
+            let v = smoothed_noise(dims, passes, rng);
+            let iso = quantile(&v, [0.35, 0.5, 0.65][round % 3]);
+            (volume_from(dims, &v), iso)
+        })
+        .collect()
+}
+
 pub fn opts(iso: f64, conn: Connectivity) -> SurfaceOptions {
     SurfaceOptions {
         iso,
