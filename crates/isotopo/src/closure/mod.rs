@@ -495,6 +495,60 @@ impl Refusal {
 mod tests {
     use super::*;
 
+    /// The base half-thickness stops the adjacency of the side a wall separates: across a
+    /// plane, no two samples adjacent by that side's rule (26 for the outside when filling under
+    /// connectivity 6 and the inside when cutting under 26; else 6) lie farther than it on
+    /// either side. Random planes; and each thickness is the least that does so (a plane
+    /// normal to a cube's diagonal, or to an axis).
+    #[test]
+    fn a_walls_base_thickness_stops_its_sides_adjacency() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let offsets = |twenty_six: bool| -> Vec<[f64; 3]> {
+            (0..27)
+                .map(|k| [k % 3, (k / 3) % 3, k / 9].map(|x| x as f64 - 1.0))
+                .filter(|o| {
+                    let n = o.iter().filter(|&&x| x != 0.0).count();
+                    n > 0 && (twenty_six || n == 1)
+                })
+                .collect()
+        };
+        // Whether some adjacent pair lies beyond `t` on both sides of the plane n . p = c.
+        let leaks = |n: [f64; 3], c: f64, t: f64, twenty_six: bool| {
+            let d = |p: [f64; 3]| n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - c;
+            (0..216).any(|k| {
+                let p = [k % 6, (k / 6) % 6, k / 36].map(|x| x as f64);
+                offsets(twenty_six).iter().any(|o| {
+                    let q = [p[0] + o[0], p[1] + o[1], p[2] + o[2]];
+                    d(p) > t && d(q) < -t
+                })
+            })
+        };
+        for op in [Operation::Collapse, Operation::Pinch] {
+            for conn in [Connectivity::Six, Connectivity::TwentySix] {
+                // Filling separates the outside, cutting the inside.
+                let separated_26 = (op == Operation::Collapse) == (conn == Connectivity::Six);
+                let t = base_thickness(op, conn);
+                for _ in 0..500 {
+                    let n = [next(), next(), next()];
+                    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                    let n = n.map(|x| x / l);
+                    let c = 2.5 + next();
+                    assert!(!leaks(n, c, t, separated_26), "{op:?} {conn:?}: {n:?} {c}");
+                }
+                let (diagonal, axis) = ([1.0 / 3f64.sqrt(); 3], [0.0, 0.0, 1.0]);
+                let tight = if separated_26 { diagonal } else { axis };
+                let c = if separated_26 { 2.5 * 3f64.sqrt() } else { 2.5 };
+                assert!(leaks(tight, c, t - 1e-9, separated_26), "{op:?} {conn:?}");
+            }
+        }
+    }
+
     #[test]
     fn triangle_distance() {
         let (a, b, c) = ([0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]);
