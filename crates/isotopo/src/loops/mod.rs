@@ -1823,7 +1823,9 @@ mod tests {
 
     /// The key of the races that ended undecided tells cuts apart: random cuts (3 to 40
     /// vertices of a 16³ grid) with their reverses, 20,000 distinct ones in all, have 20,000
-    /// distinct keys. A collision would skip the race of a cut never measured.
+    /// distinct keys; so do a cut and its near twins, each with one vertex moved one step along
+    /// one axis (a cut found again after a wall nearby). A collision would skip the race of a
+    /// cut never measured.
     #[test]
     fn cut_keys_tell_cuts_apart() {
         let mut state = 0xd1b5_4a32_d192_ed03u64;
@@ -1846,6 +1848,23 @@ mod tests {
         }
         let keys: std::collections::HashSet<u64> = cuts.iter().map(|c| cut_key(c)).collect();
         assert_eq!(keys.len(), cuts.len());
+        for cut in cuts.iter().take(200) {
+            let mut twins = std::collections::HashSet::from([cut.clone()]);
+            for k in 0..cut.len() {
+                for a in 0..3 {
+                    let mut twin = cut.clone();
+                    twin[k].p[a] += 1;
+                    twins.insert(twin);
+                }
+            }
+            let keys: std::collections::HashSet<u64> = twins.iter().map(|c| cut_key(c)).collect();
+            assert_eq!(
+                keys.len(),
+                twins.len(),
+                "a cut of {} and its twins",
+                cut.len()
+            );
+        }
     }
 
     /// A loop round a square ring, broken where a bump is added to the ring's outer face, is
