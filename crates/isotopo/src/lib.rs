@@ -89,6 +89,8 @@ pub mod simplify;
 pub(crate) mod spool;
 pub mod surface;
 pub mod sweep;
+#[cfg(test)]
+mod test_rng;
 pub mod topology;
 pub(crate) mod unionfind;
 pub mod volume;

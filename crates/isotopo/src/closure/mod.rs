@@ -502,13 +502,8 @@ mod tests {
     /// normal to a cube's diagonal, or to an axis).
     #[test]
     fn a_walls_base_thickness_stops_its_sides_adjacency() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.unit() * 2.0 - 1.0;
         let offsets = |twenty_six: bool| -> Vec<[f64; 3]> {
             (0..27)
                 .map(|k| [k % 3, (k / 3) % 3, k / 9].map(|x| x as f64 - 1.0))
@@ -563,13 +558,8 @@ mod tests {
     /// points of the three edges. Every one of the seven regions of the plane is met.
     #[test]
     fn triangle_distance_matches_feet_and_edges() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 8.0 - 4.0
-        };
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.unit() * 8.0 - 4.0;
         let segment = |p: [f64; 3], u: [f64; 3], v: [f64; 3]| {
             let (uv, up) = (sub(v, u), sub(p, u));
             let t = (dot(uv, up) / dot(uv, uv)).clamp(0.0, 1.0);

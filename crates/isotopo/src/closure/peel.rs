@@ -329,13 +329,8 @@ mod tests {
     /// and both sides.
     #[test]
     fn flipping_simple_samples_looks_again_where_it_must() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move |m: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % m
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = |m: u64| rng.below(m);
         let n = 10;
         let mut flipped = 0;
         for round in 0..40 {

@@ -440,13 +440,8 @@ mod tests {
     /// Betti numbers of the whole volume (the genus pass, the oracle).
     #[test]
     fn the_set_test_agrees_with_simple_samples_and_with_the_genus_pass() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut random = move |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % n
-        };
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut random = |n: u64| rng.below(n);
         let (mut accepted, mut refused) = (0, 0);
         for round in 0..8 {
             let n = 12;

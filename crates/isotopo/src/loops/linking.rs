@@ -202,13 +202,8 @@ mod tests {
     /// crosses none of the polygon's edges. Random edges round a random polygon.
     #[test]
     fn an_edge_misses_the_box_exactly_when_the_boxes_are_apart() {
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 20.0 - 10.0
-        };
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.unit() * 20.0 - 10.0;
         let b: Vec<Seen> = (0..7).map(|_| seen([next(), next(), next()])).collect();
         let picture = PictureBox::of(&b);
         let (mut missed, mut met) = (0, 0);
@@ -277,13 +272,8 @@ mod tests {
     /// on.
     #[test]
     fn agrees_with_the_solid_angle_formula_on_lattice_polygons() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move |m: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % m
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = |m: u64| rng.below(m);
         let (mut linked, mut checked) = (0, 0);
         for _ in 0..3000 {
             let mut walk = |offset: f64| -> Vec<[f64; 3]> {

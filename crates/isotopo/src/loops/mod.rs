@@ -1605,17 +1605,18 @@ pub fn measure_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::Rng;
 
     /// The row of a mini-volume's slice holds the pieces of exactly the cubes of the box's row
     /// that the surface passes through (corners not all on one side), told from the samples.
     #[test]
     fn mini_rows_hold_the_cubes_of_their_row() {
         let mut vol = MaskVolume::new([7, 5, 4], Frame::identity());
-        let mut state = 0x1234_5678_9abc_def1u64;
+        let mut rng = Rng(0x1234_5678_9abc_def1);
         for z in 0..4 {
             for y in 0..5 {
                 for x in 0..7 {
-                    vol.set(x, y, z, xorshift(&mut state).is_multiple_of(3));
+                    vol.set(x, y, z, rng.next_u64().is_multiple_of(3));
                 }
             }
         }
@@ -1828,8 +1829,8 @@ mod tests {
     /// cut never measured.
     #[test]
     fn cut_keys_tell_cuts_apart() {
-        let mut state = 0xd1b5_4a32_d192_ed03u64;
-        let mut next = |n: u64| xorshift(&mut state) % n;
+        let mut rng = Rng(0xd1b5_4a32_d192_ed03);
+        let mut next = |n: u64| rng.below(n);
         let mut cuts = std::collections::HashSet::new();
         while cuts.len() < 20_000 {
             let len = 3 + next(38) as usize;
@@ -2294,19 +2295,11 @@ mod tests {
         assert_eq!(polyline_mm(&rect[..1], &spacing), 0.0);
     }
 
-    /// The tests' random numbers: one xorshift step of `state`, returned.
-    fn xorshift(state: &mut u64) -> u64 {
-        *state ^= *state << 13;
-        *state ^= *state >> 7;
-        *state ^= *state << 17;
-        *state
-    }
-
     /// Smoothed random noise (`n`³, a 3×3×3 box filter), thresholded at its median: a sponge
     /// whose slices hold many intra-ribbon handles.
     fn sponge(n: usize, seed: u64) -> MaskVolume {
-        let mut state = seed;
-        let mut next = || (xorshift(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
+        let mut rng = Rng(seed);
+        let mut next = || rng.unit();
         let raw: Vec<f64> = (0..n * n * n).map(|_| next()).collect();
         let at = |x: usize, y: usize, z: usize| raw[(z * n + y) * n + x];
         let mut vol = MaskVolume::new([n, n, n], Frame::identity());

@@ -167,14 +167,9 @@ mod tests {
     #[test]
     fn a_search_cut_short_proves_nothing() {
         let n = 20;
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
         let noise: Vec<f32> = (0..n * n * n)
-            .map(|_| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 40) as f32 / (1u64 << 24) as f32
-            })
+            .map(|_| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
             .collect();
         let sponge = InMemoryVolume::from_fn([n; 3], |x, y, z| {
             // Each sample with its six neighbours: noise smoothed once.

@@ -183,13 +183,8 @@ mod tests {
     /// one sample: four segments or more.
     #[test]
     fn contours_are_the_boundaries_between_a_planes_pieces() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut random = || rng.next_u64();
         let (nx, ny) = (9, 8);
         let mut uf = UnionFind::new(0);
         for round in 0..200 {

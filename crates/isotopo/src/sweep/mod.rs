@@ -1137,13 +1137,8 @@ mod tests {
     /// mini-volume's origin anywhere.
     #[test]
     fn a_ribbons_probe_names_a_corner_of_its_own_pieces() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.next_u64();
         let mut checked = 0;
         for conn in [Connectivity::Six, Connectivity::TwentySix] {
             for _ in 0..4 {

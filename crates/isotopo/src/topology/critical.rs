@@ -282,13 +282,8 @@ mod tests {
     /// planes of widths across a word's edge.
     #[test]
     fn diagonal_faces_word_by_word() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut random = || rng.next_u64();
         let mut seen = [0, 0];
         for round in 0..400 {
             let (nx, ny) = (1 + round % 70, 1 + round % 5);
@@ -311,13 +306,8 @@ mod tests {
     /// widths across a word's edge and densities from sparse to dense.
     #[test]
     fn counts_word_by_word_as_cube_by_cube() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut random = || rng.next_u64();
         let mut total = CriticalCounts::default();
         for round in 0..300 {
             let (nx, ny) = (1 + round % 131, 1 + round % 4);

@@ -240,13 +240,8 @@ mod tests {
     #[test]
     fn fill_agrees_with_the_f64_rule() {
         let (nx, ny) = (131, 3);
-        let mut seed = 12345u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::test_rng::Rng(12345);
+        let mut next = || rng.next_u64();
         for t in DType::ALL {
             let mut s = Samples::zeros(t, nx * ny);
             let (lo, hi) = t.range();

@@ -1515,13 +1515,8 @@ mod tests {
     /// full searches from every vertex of the contour.
     #[test]
     fn shortest_odd_loops_of_random_contours_match_the_full_searches() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut random = || rng.next_u64();
         let mut compared = 0;
         for round in 0..6 {
             let n = 14;
