@@ -440,32 +440,36 @@ fn close_handle_by<'l>(
             wall,
         });
     }
-    // Last, the handle's two curves that cross once (its cut and the loop round its cycle): a
-    // closure of either removes the handle too, and the cut, a contour, spans a flat region.
-    // Either may be one of the loops reported, else it is named a basis curve.
+    close_basis(vol, opts, l, affine, (graph, refused), reach)
+}
+
+/// Last, the handle's two curves that cross once (its cut and the loop round its cycle, see
+/// [`HandleLoops::basis`]), each with the other as partner: a closure of either removes the
+/// handle too, and the cut, a contour, spans a flat region.
+fn close_basis<'l>(
+    vol: &mut MaskVolume,
+    opts: &SimplifyOptions,
+    l: &'l HandleLoops,
+    affine: &Affine,
+    (graph, refused): (&mut GraphCache, &mut Refused),
+    reach: WallReach,
+) -> Option<Closed<'l>> {
+    let conn = opts.surface.connectivity;
     let (p, q) = l.basis.as_ref()?;
-    let is = |lp: Option<&Loop>, x: &[Vertex]| lp.is_some_and(|lp| lp.vertices == x);
+    let ops: Vec<Operation> = [Operation::Collapse, Operation::Pinch]
+        .into_iter()
+        .filter(|&op| opts.mode.allows(op))
+        .collect();
     for (x, y) in [(p, q), (q, p)] {
         let geometry = Geometry {
             affine,
             fractions: vol.fractions.as_ref(),
         };
         let lx = loops::describe(vol, x, Some(y), &geometry);
-        let ops: Vec<Operation> = [Operation::Collapse, Operation::Pinch]
-            .into_iter()
-            .filter(|&op| opts.mode.allows(op))
-            .collect();
         if let Some((applied, wall)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused))
         {
-            let which = if is(l.reeb.as_ref(), x) {
-                LoopKind::Reeb
-            } else if is(l.cross.as_ref(), x) {
-                LoopKind::Cross
-            } else {
-                LoopKind::Basis
-            };
             return Some(Closed {
-                which,
+                which: basis_kind(l, x),
                 lp: std::borrow::Cow::Owned(lx),
                 partner: Some(y.len()),
                 applied,
@@ -474,6 +478,19 @@ fn close_handle_by<'l>(
         }
     }
     None
+}
+
+/// What a basis curve is called in the report: the loop it is, if it is one of the handle's
+/// loops, else a basis curve.
+fn basis_kind(l: &HandleLoops, x: &[Vertex]) -> LoopKind {
+    let is = |lp: &Option<Loop>| lp.as_ref().is_some_and(|lp| lp.vertices == x);
+    if is(&l.reeb) {
+        LoopKind::Reeb
+    } else if is(&l.cross) {
+        LoopKind::Cross
+    } else {
+        LoopKind::Basis
+    }
 }
 
 /// The operations tried on a loop, of those the mode allows: the one the side it goes round
@@ -525,6 +542,33 @@ mod tests {
             length_mm: length as f64,
             encloses: Encloses::Void,
         }
+    }
+
+    /// A basis curve closed is reported as the loop it is, or as a basis curve when it is
+    /// neither of the handle's loops (a top-level handle's cut).
+    #[test]
+    fn a_basis_curve_is_named_for_the_loop_it_is() {
+        let (a, b, c) = (
+            x_edges(&[[0, 0, 0], [1, 0, 0]]),
+            x_edges(&[[0, 1, 0], [1, 1, 0]]),
+            x_edges(&[[0, 2, 0], [1, 2, 0]]),
+        );
+        let l = HandleLoops {
+            reeb: Some(a_loop(a.clone(), 2)),
+            cross: Some(a_loop(b.clone(), 2)),
+            exact: true,
+            basis: Some((c.clone(), a.clone())),
+            cut_points: None,
+        };
+        assert_eq!(basis_kind(&l, &a), LoopKind::Reeb);
+        assert_eq!(basis_kind(&l, &b), LoopKind::Cross);
+        assert_eq!(basis_kind(&l, &c), LoopKind::Basis);
+        let none = HandleLoops {
+            reeb: None,
+            cross: None,
+            ..l
+        };
+        assert_eq!(basis_kind(&none, &a), LoopKind::Basis);
     }
 
     /// Gathered once for the thinnest fan, the samples near the fan are gathered again as far
