@@ -112,25 +112,23 @@ pub fn compose(
         moves: 0,
         swaps: 0,
         rewrites: 0,
+        touched: Vec::new(),
     };
-    let nw = vol.dims[2] as i64;
-    progress.start("well-composed", nw as u64 + 1);
-    for w in -1..nw {
-        // Out of core: keep the window of planes up to a few above this slab (a speck moves
-        // at most three samples); planes further below are read back when a mend reaches them.
-        vol.follow_sweep(w + 4)?;
-        let mut cells: Vec<Cell> = Vec::new();
-        each_critical(&vol.plane_once(w), &vol.plane_once(w + 1), |i, j, kind| {
-            cells.push((kind, [i as i64 - 1, j as i64 - 1, w]))
-        });
-        for cell in cells {
-            mender.mend(vol, cell);
+    // A cell left may become mendable once later mends change what lies round it: look again
+    // near the last look's flips until a look flips nothing (each mend lowers the count, so
+    // this ends). The step is then its own fixed point: run again, it flips nothing.
+    let mut near: Option<Near> = None;
+    for look in 1.. {
+        let stage = match look {
+            1 => "well-composed".to_string(),
+            n => format!("well-composed, look {n}"),
+        };
+        mender.look(vol, progress, &stage, near.as_ref())?;
+        if mender.touched.is_empty() {
+            break;
         }
-        progress.advance(1);
-        crate::progress::between_steps(progress, "well-composed step")?;
+        near = Some(Near::of(&mender.touched));
     }
-    progress.finish();
-    vol.follow_sweep(nw)?;
     let mut flips: Vec<([i64; 3], bool)> = mender
         .original
         .into_iter()
@@ -149,6 +147,53 @@ pub fn compose(
     })
 }
 
+/// Where a look after the first tries cells again: blocks of [`NEAR_BLOCK`]³ samples within
+/// [`NEAR_REACH`] of a sample the last look flipped (a cell left is mended later only if
+/// something a mend of it reads changed; the farthest read is a swap's path).
+struct Near {
+    blocks: FastMap<[i64; 3], ()>,
+    planes: FastMap<i64, ()>,
+}
+
+/// Side of the blocks [`Near`] marks.
+const NEAR_BLOCK: i64 = 16;
+/// How far from a flip a cell it may let be mended lies: a swap's far path, and the cell's cube.
+const NEAR_REACH: i64 = FAR_SWAP_REACH + 2;
+
+impl Near {
+    fn of(flips: &[[i64; 3]]) -> Near {
+        let block = |p: [i64; 3]| p.map(|c| c.div_euclid(NEAR_BLOCK));
+        let r = (NEAR_REACH + NEAR_BLOCK - 1) / NEAR_BLOCK;
+        let mut near = Near {
+            blocks: FastMap::default(),
+            planes: FastMap::default(),
+        };
+        let centres: FastMap<[i64; 3], ()> = flips.iter().map(|&p| (block(p), ())).collect();
+        for b in centres.keys() {
+            for z in -r..=r {
+                near.planes.insert(b[2] + z, ());
+                for y in -r..=r {
+                    for x in -r..=r {
+                        near.blocks.insert([b[0] + x, b[1] + y, b[2] + z], ());
+                    }
+                }
+            }
+        }
+        near
+    }
+
+    /// Whether plane `w` holds cells near.
+    fn plane(&self, w: i64) -> bool {
+        self.planes.contains_key(&w.div_euclid(NEAR_BLOCK))
+    }
+
+    /// Whether a cell whose lowest corner is `c` lies near.
+    fn holds(&self, c: [i64; 3]) -> bool {
+        self.blocks
+            .contains_key(&c.map(|x| x.div_euclid(NEAR_BLOCK)))
+    }
+}
+
 struct Mender {
     conn: Connectivity,
     /// The only side samples may be flipped to, if any.
@@ -159,9 +204,48 @@ struct Mender {
     moves: u64,
     swaps: u64,
     rewrites: u64,
+    /// Samples flipped in the current look.
+    touched: Vec<[i64; 3]>,
 }
 
 impl Mender {
+    /// One look over the volume, plane by plane, mending each critical cell met (only those
+    /// `near` the last look's flips, if given).
+    fn look(
+        &mut self,
+        vol: &mut MaskVolume,
+        progress: &dyn Progress,
+        stage: &str,
+        near: Option<&Near>,
+    ) -> Result<()> {
+        self.touched.clear();
+        let nw = vol.dims[2] as i64;
+        progress.start(stage, nw as u64 + 1);
+        for w in -1..nw {
+            if near.is_some_and(|n| !n.plane(w)) {
+                progress.advance(1);
+                continue;
+            }
+            // Out of core: keep the window of planes up to a few above this slab (a speck
+            // moves at most three samples); planes further below are read back when a mend
+            // reaches them.
+            vol.follow_sweep(w + 4)?;
+            let mut cells: Vec<Cell> = Vec::new();
+            each_critical(&vol.plane_once(w), &vol.plane_once(w + 1), |i, j, kind| {
+                cells.push((kind, [i as i64 - 1, j as i64 - 1, w]))
+            });
+            for cell in cells {
+                if near.is_none_or(|n| n.holds(cell.1)) {
+                    self.mend(vol, cell);
+                }
+            }
+            progress.advance(1);
+            crate::progress::between_steps(progress, "well-composed step")?;
+        }
+        progress.finish();
+        vol.follow_sweep(nw)
+    }
+
     /// Mends `start` and every cell its changes make critical, while a change lowers the count.
     fn mend(&mut self, vol: &mut MaskVolume, start: Cell) {
         let mut todo = vec![start];
@@ -200,6 +284,7 @@ impl Mender {
     }
 
     fn flip(&mut self, vol: &mut MaskVolume, p: [i64; 3]) {
+        self.touched.push(p);
         let now = vol.get(p[0], p[1], p[2]);
         self.original.entry(p).or_insert(now);
         set(vol, p, !now);
@@ -1094,6 +1179,7 @@ mod tests {
             moves: 0,
             swaps: 0,
             rewrites: 0,
+            touched: Vec::new(),
         }
     }
 
