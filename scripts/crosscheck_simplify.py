@@ -236,6 +236,9 @@ def check(run, tmp, timeout=None):
         f"| changed {len(flipped):>6} | walls {walls} {meshers}| {secs:6.1f} s{'' if not failures else '   <-- FAILED'}",
         flush=True,
     )
+    # Said at once too: a long run stopped early (--matrix all) keeps what it found.
+    for f in failures:
+        print(f"    {f}", flush=True)
     return failures
 
 
