@@ -207,7 +207,7 @@ def main():
                 if r is not None and r.get("well_composed"):
                     w = r["well_composed"]
                     extra = (f"flipped {w['samples_flipped']:>5}, left {w['critical_left']['faces'] + w['critical_left']['cubes']:>3}, "
-                             f"at iso {r['samples_at_iso']}, largest move {r['largest_move']:.3g}")
+                             f"at iso {r['samples_at_iso']}, largest move {r['largest_move']:.6g}")
                 print(f"{name:<28} {what:<30} | skimage {g['skimage']!s:>5} | vtk {g['vtk']!s:>5} | c6 {g['c6']:>5} "
                       f"| c26 {g['c26']:>5} | critical {g['critical'][0]:>5} {g['critical'][1]:>4} | {extra}", flush=True)
     if failures:
