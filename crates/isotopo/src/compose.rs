@@ -41,7 +41,9 @@
 //! swap or a rewrite may move a handle, never add or remove one) and lowers the number of
 //! critical cells of the volume, so the step ends; cells no such change mends are left and
 //! counted: specks packed among other pieces with nowhere to go, threads tangled with
-//! themselves. (A checkerboard of single samples has more separate pieces than a
+//! themselves. The step looks over the volume plane by plane, then again near what it flipped
+//! until a look flips nothing (a cell left may become mendable once its neighbours change), so
+//! run again on its own output it flips nothing. (A checkerboard of single samples has more separate pieces than a
 //! well-composed set of its size can hold: no step can mend all of it.)
 
 use crate::error::Result;
