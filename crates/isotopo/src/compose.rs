@@ -1260,6 +1260,33 @@ mod tests {
         assert!(count_volume(&vol).total() < critical);
     }
 
+    /// A look after the first tries again every cell within [`NEAR_REACH`] of a flip of the
+    /// last look (on every axis), on a plane it visits, and none much farther: random flips
+    /// and cells in a 300-sample cube, negative coordinates too.
+    #[test]
+    fn a_later_look_reaches_every_cell_a_flip_may_let_be_mended() {
+        let mut rng = crate::test_rng::Rng(0x0ea5_11de);
+        let mut random = |n: i64| (rng.below(n as u64 * 2) as i64) - n;
+        let (mut near, mut far) = (0, 0);
+        for _ in 0..200 {
+            let flips: Vec<[i64; 3]> = (0..3).map(|_| [0; 3].map(|_| random(150))).collect();
+            let n = Near::of(&flips);
+            for _ in 0..200 {
+                let c = [0; 3].map(|_| random(150));
+                let apart = |f: &[i64; 3]| (0..3).map(|k| (f[k] - c[k]).abs()).max().unwrap_or(0);
+                let d = flips.iter().map(apart).min().unwrap_or(i64::MAX);
+                if d <= NEAR_REACH {
+                    assert!(n.holds(c) && n.plane(c[2]), "{c:?}, {d} from a flip");
+                    near += 1;
+                } else if d > NEAR_REACH + 2 * NEAR_BLOCK {
+                    assert!(!n.holds(c), "{c:?}, {d} from the flips");
+                    far += 1;
+                }
+            }
+        }
+        assert!(near > 100 && far > 10_000, "{near} near, {far} far");
+    }
+
     /// A dent of three outside samples in a block, joined to the outside only across the
     /// diagonal of the cube at the end of a channel: it is filled (from its far end, each
     /// flip simple in turn) and the cube stops being critical.
