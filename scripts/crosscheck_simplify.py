@@ -126,19 +126,19 @@ def wall_reach_failures(r, flipped, what):
             break
         h = r["removed"][i]
         pts = np.array(h["points"])
-        if h["wall"] == "peeled_box":
-            lo, hi = np.floor(pts.min(0)) - h["thickness"], np.ceil(pts.max(0)) + h["thickness"]
-            ok = bool(np.all(q >= lo) and np.all(q <= hi))
-        elif h["wall"] == "peeled_along":
-            # The loop's box (with its margin) moved along the partner, the curve crossing the
-            # loop once: from the vertex they share by at most half the partner (its edge
-            # midpoints step at most 1 voxel on each axis). So the wall fits in a box that size,
-            # within that shift of the loop's box.
+        if h["wall"] in ("peeled_box", "peeled_along"):
+            # The box round the loop, with its margin; a `peeled_along` wall's box is that box
+            # moved along the partner (the curve crossing the loop once) from the vertex they
+            # share, by at most half the partner (its edge midpoints step at most 1 voxel on
+            # each axis): the wall fits in a box that size, within that shift of the loop's box.
             lo, hi = np.floor(pts.min(0)) - h["thickness"], np.ceil(pts.max(0)) + h["thickness"]
             samples = np.array(h["samples"])
             spread = samples.max(0) - samples.min(0)
-            shift = (h["partner"] or 0) / 2
-            ok = bool(h["partner"] and np.all(spread <= hi - lo) and np.all(q >= lo - shift) and np.all(q <= hi + shift))
+            if h["wall"] == "peeled_box":
+                shift = 0
+            else:
+                shift = h["partner"] / 2 if h["partner"] else np.nan
+            ok = bool(np.all(spread <= hi - lo) and np.all(q >= lo - shift) and np.all(q <= hi + shift))
         else:
             reach = h["thickness"] + h["length"] / 4 + 1e-6
             ok = bool((np.linalg.norm(pts - q, axis=1) <= reach).any())

@@ -239,17 +239,17 @@ fn check(
             (lo.floor(), hi.ceil())
         };
         let ok = match r.wall {
-            "peeled_box" => (0..3).all(|k| {
-                let (lo, hi) = extent(k);
-                p[k] >= lo - r.thickness && p[k] <= hi + r.thickness
-            }),
-            // The loop's box moved along its partner from the vertex they share, by at most
-            // half the partner (its edge midpoints step at most a voxel on each axis): the
-            // wall fits in a box that size, within that shift of the loop's box.
-            "peeled_along" => (0..3).all(|k| {
+            // The box round the loop, with its margin; a `peeled_along` wall's box is that box
+            // moved along its partner from the vertex they share, by at most half the partner
+            // (its edge midpoints step at most a voxel on each axis): the wall fits in a box
+            // that size, within that shift of the loop's box.
+            "peeled_box" | "peeled_along" => (0..3).all(|k| {
                 let (lo, hi) = extent(k);
                 let (lo, hi) = (lo - r.thickness, hi + r.thickness);
-                let shift = r.partner.map_or(f64::NAN, |n| n as f64 / 2.0);
+                let shift = match r.wall {
+                    "peeled_box" => 0.0,
+                    _ => r.partner.map_or(f64::NAN, |n| n as f64 / 2.0),
+                };
                 let spread = r.samples.iter().map(|s| s[k] as f64);
                 let (a, b) = (
                     spread.clone().fold(f64::INFINITY, f64::min),

@@ -221,12 +221,12 @@ pub struct Removed {
     pub operation: Operation,
     /// Length of the closed loop (voxel edges and mm).
     pub length: usize,
+    /// The closed loop's length in millimetres.
+    pub length_mm: f64,
     /// Length (edges) of its partner, the curve crossing it once whose ring the wall cuts (the
     /// handle's other loop, or its cut), if it had one: a `peeled_along` wall lies in the
     /// closed loop's box moved along the partner, by at most half of it.
     pub partner: Option<usize>,
-    /// The closed loop's length in millimetres.
-    pub length_mm: f64,
     /// Half-thickness of the wall (voxels): how far from the loop's fan its samples lie (for a
     /// `peeled_box` or `peeled_along` wall, the margin of the box it lies in).
     pub thickness: f64,
