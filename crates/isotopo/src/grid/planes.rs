@@ -433,6 +433,11 @@ impl MaskVolume {
             .set(u, v, inside)
     }
 
+    /// Planes the window holds (all of them in memory).
+    pub fn window(&self) -> usize {
+        self.window
+    }
+
     /// Is the volume out of core?
     pub fn out_of_core(&self) -> bool {
         self.store.is_some()

@@ -94,24 +94,23 @@ pub(super) fn certify(
 /// The certificate of the last pass: every handle kept for its size, and the crossing matrix of
 /// their curves of full rank (2 × kept), so no loop below tau is left.
 pub(super) fn certificate_holds(
-    vol: &MaskVolume,
+    vol: &mut MaskVolume,
     conn: Connectivity,
     kept: &[(i64, Kept)],
     basis: &[(i64, Vec<Vec<Vertex>>)],
     progress: &dyn Progress,
-) -> bool {
+) -> crate::error::Result<bool> {
     if kept.iter().any(|(_, k)| k.reason != KeepReason::Size) {
-        return false;
+        return Ok(false);
     }
     let curves: Vec<Vec<Vertex>> = basis.iter().flat_map(|(_, c)| c.clone()).collect();
-    let mut g = Graph::new(vol, cases(conn));
-    let rank = loops::basis::crossing_rank(&mut g, &curves);
+    let rank = loops::basis::crossing_rank(vol, conn, &curves)?;
     progress.trace(format_args!(
         "certificate: {} curves, rank {rank:?}, {} kept",
         curves.len(),
         kept.len()
     ));
-    rank == Some(2 * kept.len())
+    Ok(rank == Some(2 * kept.len()))
 }
 
 #[cfg(test)]
@@ -144,15 +143,16 @@ mod tests {
             3.5 - ((x * x + y * y).sqrt() - 9.0).hypot(z)
         });
         let opts = crate::AnalyzeOptions::default();
-        let a = crate::analyze(crate::Source::from(torus), &opts, &NoProgress).unwrap();
+        let mut a = crate::analyze(crate::Source::from(torus), &opts, &NoProgress).unwrap();
         assert_eq!(a.loops.len(), 1);
         let (p, q) = a.loops[0]
             .basis
             .clone()
             .expect("a measured handle has its curves");
         let conn = Connectivity::Six;
-        let holds = |reason, curves: Vec<Vec<Vertex>>| {
-            certificate_holds(&a.masks, conn, &kept(reason), &[(0, curves)], &NoProgress)
+        let mut holds = |reason, curves: Vec<Vec<Vertex>>| {
+            let basis = [(0, curves)];
+            certificate_holds(&mut a.masks, conn, &kept(reason), &basis, &NoProgress).unwrap()
         };
         assert!(holds(KeepReason::Size, vec![p.clone(), q.clone()]));
         assert!(!holds(KeepReason::Size, vec![p.clone(), p.clone()]));

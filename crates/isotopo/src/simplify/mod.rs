@@ -590,7 +590,7 @@ impl<'a> Run<'a> {
         progress.finish();
         let closed = self.removed.len() - closed_before;
         if closed == 0 && self.certifying {
-            let holds = certificate_holds(vol, self.conn, &self.kept, &self.basis, progress);
+            let holds = certificate_holds(vol, self.conn, &self.kept, &self.basis, progress)?;
             self.certified = Some(holds);
         }
         vol.follow_sweep(sweeper.next)?;
