@@ -4,7 +4,7 @@ Simplification" (2002), on the real volumes of ../shared/data, with reference to
 same run and an out-of-core row.
 
     python3 bench/bench_table1.py [volume names...] [--tau T] [--repeat N] [--big | --no-big]
-                                  [--noise SIDES] [--json FILE] [--keep DIR]
+                                  [--noise SIDES] [--giga] [--json FILE] [--keep DIR]
 
     volume names   files of ../shared/data (isovalues from scripts/common.py REAL); default
                    buddha-sdf.nii.gz cranium-ct.nii.gz mni2009a-gm.nii.gz freesurfer-wm.mgz
@@ -15,6 +15,7 @@ same run and an out-of-core row.
     --big          out-of-core row (default: on when bunny-ct.nii.gz is among the volumes)
     --noise SIDES  sides of the generated noise cubes of table 2c, comma-separated (default 128:
                    53,546 handles; 0: none)
+    --giga         gigavoxel row (table 6; off by default: about 4 minutes and 7 GB of disk)
     --json FILE    write every number below (and the paper's rows) as JSON
     --keep DIR     work in DIR and keep the files (uncompressed inputs, outputs, reports)
 
@@ -56,6 +57,10 @@ resident memory from /usr/bin/time -v; CPU = user + system seconds, isotopo is m
                        then the 4x simplify again with `--max-slices 0` (whole volume in memory):
                        the two output volumes must be byte-identical (PASS/FAIL). Skipped with a
                        note if the binary does not know --max-slices.
+  6. Gigavoxel         (--giga) the bunny CT tiled 2x2x3 (1024x1024x1083 int16, 2.3 GB):
+                       simplify --tau T windowed (the default) and with --max-slices 0: wall and
+                       CPU s, peak MiB, against the targets (under 120 s, at most 256 MiB), and
+                       whether the two outputs are the same bytes (PASS/FAIL).
 
 Consistency checks (genus = handles = analyze = simplify genus_before = skimage b1, removed =
 collapse + pinch, b0 and b2 unchanged by simplify, the output volume's Betti numbers = the
@@ -79,7 +84,9 @@ from common import REAL, SHARED, cpu_seconds, isotopo_bin, load, skimage_betti, 
 
 DEFAULT = ["buddha-sdf.nii.gz", "cranium-ct.nii.gz", "mni2009a-gm.nii.gz", "freesurfer-wm.mgz", "bunny-ct.nii.gz"]
 BUNNY = "bunny-ct.nii.gz"
-MIB_TARGET = 256  # out-of-core row: the 4x simplify must stay under this
+MIB_TARGET = 256  # out-of-core row: the 4x simplify must stay under this (and the gigavoxel run)
+GIGA_TILES = (2, 2, 3)  # the gigavoxel row: the bunny CT tiled along x, y and z
+GIGA_SECONDS = 120  # ... whose simplify must take less than this
 RATIO_TARGET = 1.25  # ... and within this factor of the 1x run
 
 # Table 1 of Wood et al. 2002, transcribed from
@@ -313,6 +320,12 @@ def bench_noise(sides, work):
 def write_repeated_z(src_nii, header_from, dst, copies):
     """Writes dst: the volume of src_nii (uncompressed NIfTI) repeated `copies` times along z, with
     the header (affine, type, scaling) of header_from, streamed slab by slab."""
+    return write_tiled(src_nii, header_from, dst, (1, 1, copies))
+
+
+def write_tiled(src_nii, header_from, dst, tiles):
+    """Writes dst: the volume of src_nii (uncompressed NIfTI) tiled (tx, ty, tz) times along x, y
+    and z, with the header (affine, type, scaling) of header_from, streamed slab by slab."""
     import nibabel as nib
 
     hdr = nib.load(str(header_from)).header.copy()
@@ -323,18 +336,21 @@ def write_repeated_z(src_nii, header_from, dst, copies):
         raise SystemExit(f"{src_nii} does not hold the samples of {header_from} as stored: cannot stream them")
     data = img.dataobj.get_unscaled()  # a memmap, [x, y, z] in Fortran order
     nx, ny, nz = data.shape
-    hdr.set_data_shape((nx, ny, nz * copies))
+    tx, ty, tz = tiles
+    hdr.set_data_shape((nx * tx, ny * ty, nz * tz))
     hdr["vox_offset"] = 0  # let nibabel place the data right after the header
     dtype = hdr.get_data_dtype()
     with open(dst, "wb") as out:
         hdr.write_to(out)
         out.seek(hdr.get_data_offset())
-        for _ in range(copies):
-            for z in range(0, nz, 32):
-                # A z slab of a Fortran-ordered array, transposed, is C-contiguous in file order.
-                np.ascontiguousarray(data[:, :, z:z + 32].T, dtype=dtype).tofile(out)
+        for _ in range(tz):
+            for z in range(0, nz, 16):
+                # A z slab of a Fortran-ordered array, transposed, is C-contiguous in file order:
+                # [z, y, x], tiled along y and x.
+                slab = np.ascontiguousarray(data[:, :, z:z + 16].T, dtype=dtype)
+                np.tile(slab, (1, ty, tx)).tofile(out)
     del data, img
-    return (nx, ny, nz * copies)
+    return (nx * tx, ny * ty, nz * tz)
 
 
 def sha256(path):
@@ -407,6 +423,56 @@ def bench_big(rows, tau, work, notes):
     return big
 
 
+def bench_giga(tau, work, notes):
+    """Gigavoxel row: the bunny CT tiled 2x2x3 (1024x1024x1083 int16, 2.3 GB), simplify --tau T
+    windowed (the default) and with the whole volume in memory (--max-slices 0): time, peak
+    memory, and whether the two outputs are the same bytes."""
+    iso = REAL[BUNNY]
+    src = SHARED / BUNNY
+    conv = work / uncompressed_name(BUNNY)
+    if not conv.exists():
+        print(f"giga: converting {BUNNY}", flush=True)
+        timed([isotopo_bin(), "convert", src, "-o", conv, "-q"])
+    tiled = work / "bunny-ct-2x2x3.nii"
+    print(f"giga: writing {tiled.name}", flush=True)
+    giga = {"tau": tau, "dims": list(write_tiled(conv, src, tiled, GIGA_TILES))}
+    runs = [("windowed", ()), ("whole", ("--max-slices", "0"))]
+    for key, extra in runs:
+        print(f"giga: simplify ({key})", flush=True)
+        out = work / f"simplified-{key}-{tiled.name}"
+        s = simplify(tiled, iso, tau, out, work / f"giga-{key}-report.json", *extra, check=False)
+        if s["returncode"] != 0:
+            notes.append(f"giga: simplify ({key}) failed ({s['returncode']}): {s['stderr'][:300]}")
+            giga[key] = None
+            continue
+        giga[key] = {k: s[k] for k in ("seconds", "cpu_seconds", "peak_mib")}
+        giga[key]["genus_before"] = s["report"]["genus_before"]
+        giga[key]["genus_after"] = s["report"]["genus_after"]
+        giga[key]["sha256"] = sha256(out)
+        out.unlink()
+    tiled.unlink()
+    w, h = giga["windowed"], giga["whole"]
+    giga["identical"] = None if not (w and h) else w["sha256"] == h["sha256"]
+    giga["time_pass"] = None if not w else w["seconds"] < GIGA_SECONDS
+    giga["peak_pass"] = None if not w else w["peak_mib"] <= MIB_TARGET
+    return giga
+
+
+def print_giga(giga):
+    print(f"\n6. Gigavoxel: isotopo simplify --tau {giga['tau']} on {BUNNY} tiled "
+          f"{'x'.join(map(str, GIGA_TILES))} ({grid(giga['dims'])})\n")
+    hdr = ["run", "genus", "after", "wall s", "CPU s", "peak MiB"]
+    out = [[n, r["genus_before"], r["genus_after"], f(r["seconds"], ".1f"), f(r["cpu_seconds"], ".1f"),
+            f(r["peak_mib"], ".0f")]
+           for n, r in [("windowed (default)", giga["windowed"]), ("--max-slices 0", giga["whole"])] if r]
+    print(table(hdr, out))
+    ok = {True: "PASS", False: "FAIL", None: "SKIP"}
+    if giga["windowed"]:
+        print(f"\n  windowed wall {giga['windowed']['seconds']:.1f} s (target < {GIGA_SECONDS}): {ok[giga['time_pass']]}")
+        print(f"  windowed peak {giga['windowed']['peak_mib']:.0f} MiB (target <= {MIB_TARGET}): {ok[giga['peak_pass']]}")
+    print(f"  windowed vs --max-slices 0 outputs byte-identical: {ok[giga['identical']]}")
+
+
 def print_noise(noise):
     print("\n2c. Every handle of generated noise removed (one run each): simplify --tau inf with one thread and with")
     print("    all; ms/handle = (simplify s - genus s) / handles removed\n")
@@ -420,7 +486,7 @@ def print_noise(noise):
     print(table(hdr, out))
 
 
-def print_tables(rows, big, tau, notes, noise=()):
+def print_tables(rows, big, tau, notes, noise=(), giga=None):
     print("\n1. Table 1 form (isotopo simplify, tau = %s voxel edges)\n" % tau)
     hdr = ["volume", "grid", "tau", "genus", "after", "(output)", "#intra", "#collapse", "#pinch", "samples", "wall s", "CPU s", "MiB"]
     out = []
@@ -505,6 +571,9 @@ def print_tables(rows, big, tau, notes, noise=()):
             print(f"  windowed vs --max-slices 0 outputs byte-identical: {ok[big['identical']]} "
                   f"(sha256 {big['sha256_windowed'][:16]}… vs {big['sha256_whole'][:16]}…)")
 
+    if giga is not None:
+        print_giga(giga)
+
     if notes:
         print("\nNotes:")
         for n in notes:
@@ -519,6 +588,8 @@ def main(argv):
     ap.add_argument("--repeat", type=int, default=3, help="best of N for the genus pass and VTK extraction (default 3)")
     ap.add_argument("--big", action=argparse.BooleanOptionalAction, default=None,
                     help=f"out-of-core row: bunny 1x vs 4x along z (default: on when {BUNNY} is among the volumes)")
+    ap.add_argument("--giga", action="store_true",
+                    help=f"gigavoxel row: {BUNNY} tiled 2x2x3, windowed and whole (about 4 minutes, 7 GB of disk)")
     ap.add_argument("--noise", default="128", metavar="SIDES",
                     help="sides of the noise cubes of table 2c, comma-separated (default 128; 0: none)")
     ap.add_argument("--json", metavar="FILE", help="write all the numbers as JSON")
@@ -539,6 +610,8 @@ def main(argv):
         ap.error(f"--big needs {SHARED / BUNNY}")
     if big_on and not have("nibabel"):
         ap.error("--big needs nibabel to write the 4x volume")
+    if args.giga and not ((SHARED / BUNNY).exists() and have("nibabel")):
+        ap.error(f"--giga needs {SHARED / BUNNY} and nibabel")
     isotopo_bin()
 
     notes = []
@@ -558,11 +631,12 @@ def main(argv):
         rows = [bench_volume(n, args.tau, args.repeat, work, notes) for n in names]
         big = bench_big(rows, args.tau, work, notes) if big_on else None
         noise = bench_noise(sides, work)
+        giga = bench_giga(args.tau, work, notes) if args.giga else None
     finally:
         if cleanup is not None:
             cleanup.cleanup()
 
-    print_tables(rows, big, args.tau, notes, noise)
+    print_tables(rows, big, args.tau, notes, noise, giga)
     if args.keep:
         print(f"\nfiles kept in {work}")
     if args.json:
@@ -574,6 +648,7 @@ def main(argv):
             "volumes": rows,
             "big": big,
             "noise": noise,
+            "giga": giga,
             "paper_table1": {"source": "Wood, Hoppe, Desbrun, Schröder 2002, Table 1; times in CPU minutes", "rows": PAPER},
             "notes": notes,
         }
