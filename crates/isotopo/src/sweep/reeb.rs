@@ -462,6 +462,42 @@ mod tests {
         assert!(found > 20_000 && none > 5_000, "{found} paths, {none} none");
     }
 
+    /// The searches' stamps wrap round after 2^31 searches: the stamps are cleared then, and a
+    /// search right after the wrap finds the same paths as any other (a stale stamp would make
+    /// a node look visited).
+    #[test]
+    fn shortest_paths_survive_the_stamps_wrapping_round() {
+        // Searched before the wrap or not: no stamp, or stale ones.
+        for (start, before) in [
+            (u32::MAX - 3, true),
+            (u32::MAX - 1, true),
+            (u32::MAX - 1, false),
+        ] {
+            let mut g = ReebGraph::default();
+            for i in 0..6 {
+                g.add_node(NodeKind::Contour, 0, i);
+            }
+            // 0-1-2-3 and 0-4-3, 5 isolated.
+            for (a, b) in [(0, 1), (1, 2), (2, 3), (0, 4), (4, 3)] {
+                g.add_edge(a, b);
+            }
+            if before {
+                assert_eq!(g.shortest_path(0, 2, &[]), Some(vec![0, 1, 2]));
+            }
+            g.generation = start;
+            for _ in 0..3 {
+                assert_eq!(
+                    g.shortest_path(0, 3, &[]),
+                    Some(vec![0, 4, 3]),
+                    "from {start}"
+                );
+                assert_eq!(g.shortest_path(2, 4, &[]).map(|p| p.len()), Some(3));
+                assert_eq!(g.shortest_path(0, 5, &[]), None);
+            }
+            assert!(g.generation < 32, "wrapped round: {}", g.generation);
+        }
+    }
+
     #[test]
     fn truncate_restores_edges_and_nodes() {
         let mut g = ReebGraph::default();
