@@ -24,3 +24,27 @@ impl Rng {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// Uniform noise in [0, 1) (24 bits a sample), each sample summed with its six neighbours and
+/// thresholded at 3.5 (iso 0): a sponge of a few dozen handles on a 20³ grid.
+pub(crate) fn sponge(n: usize, seed: u64) -> crate::volume::InMemoryVolume {
+    let mut rng = Rng(seed);
+    let noise: Vec<f32> = (0..n * n * n)
+        .map(|_| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
+        .collect();
+    crate::volume::InMemoryVolume::from_fn([n; 3], |x, y, z| {
+        let at = |x: usize, y: usize, z: usize| noise[(z * n + y) * n + x];
+        let (lo, hi) = (
+            |v: usize| v.saturating_sub(1),
+            |v: usize| (v + 1).min(n - 1),
+        );
+        at(x, y, z)
+            + at(lo(x), y, z)
+            + at(hi(x), y, z)
+            + at(x, lo(y), z)
+            + at(x, hi(y), z)
+            + at(x, y, lo(z))
+            + at(x, y, hi(z))
+            - 3.5
+    })
+}

@@ -218,28 +218,6 @@ mod tests {
     use super::*;
     use crate::progress::NoProgress;
     use crate::surface::search::{crossing_parity, Graph};
-    use crate::volume::InMemoryVolume;
-
-    /// Smoothed noise thresholded at its mean: a sponge of a few dozen handles.
-    fn sponge(n: usize, seed: u64) -> InMemoryVolume {
-        let mut rng = crate::test_rng::Rng(seed);
-        let noise: Vec<f32> = (0..n * n * n).map(|_| rng.unit() as f32).collect();
-        InMemoryVolume::from_fn([n; 3], |x, y, z| {
-            let at = |x: usize, y: usize, z: usize| noise[(z * n + y) * n + x];
-            let (lo, hi) = (
-                |v: usize| v.saturating_sub(1),
-                |v: usize| (v + 1).min(n - 1),
-            );
-            at(x, y, z)
-                + at(lo(x), y, z)
-                + at(hi(x), y, z)
-                + at(x, lo(y), z)
-                + at(x, hi(y), z)
-                + at(x, y, lo(z))
-                + at(x, y, hi(z))
-                - 3.5
-        })
-    }
 
     /// The oracle: the whole matrix of crossing parities, each pair of curves walked whole
     /// ([`crossing_parity`]), and its rank.
@@ -268,7 +246,7 @@ mod tests {
         let conn = Connectivity::Six;
         let mut ranks = Vec::new();
         for seed in 1..=6u64 {
-            let vol = sponge(20, 0x9e37_79b9_7f4a_7c15 ^ seed);
+            let vol = crate::test_rng::sponge(20, 0x9e37_79b9_7f4a_7c15 ^ seed);
             let opts = crate::AnalyzeOptions::default();
             let mut a = crate::analyze(crate::Source::from(vol.clone()), &opts, &NoProgress)
                 .expect("analysed");

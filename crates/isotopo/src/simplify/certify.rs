@@ -167,26 +167,7 @@ mod tests {
     #[test]
     fn a_search_cut_short_proves_nothing() {
         let n = 20;
-        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
-        let noise: Vec<f32> = (0..n * n * n)
-            .map(|_| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
-            .collect();
-        let sponge = InMemoryVolume::from_fn([n; 3], |x, y, z| {
-            // Each sample with its six neighbours: noise smoothed once.
-            let at = |x: usize, y: usize, z: usize| noise[(z * n + y) * n + x];
-            let (lo, hi) = (
-                |v: usize| v.saturating_sub(1),
-                |v: usize| (v + 1).min(n - 1),
-            );
-            at(x, y, z)
-                + at(lo(x), y, z)
-                + at(hi(x), y, z)
-                + at(x, lo(y), z)
-                + at(x, hi(y), z)
-                + at(x, y, lo(z))
-                + at(x, y, hi(z))
-                - 3.5
-        });
+        let sponge = crate::test_rng::sponge(n, 0x2545_f491_4f6c_dd1d);
         let opts = crate::AnalyzeOptions::default();
         let a = crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap();
         let conn = Connectivity::Six;
