@@ -133,17 +133,10 @@ fn add_crossings(
     if places.iter().all(|p| p.0 == places[0].0) {
         return true; // one curve: nothing to cross here
     }
-    // The neighbours on each curve's left at u: strictly after the step back, clockwise, up to
-    // the step on.
+    // The neighbours on each curve's left at u.
     let mut left: FastMap<u32, u16> = FastMap::default();
     for &(c, ip, inx) in &steps {
-        let mut m = 0u16;
-        let mut k = (ip + 1) % a.n;
-        while k != inx {
-            m |= 1 << k;
-            k = (k + 1) % a.n;
-        }
-        *left.entry(c).or_default() |= m;
+        *left.entry(c).or_default() |= a.left_of(ip, inx);
     }
     for &(c, ip, inx) in &steps {
         for (&d, &m) in &left {

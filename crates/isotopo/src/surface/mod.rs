@@ -174,6 +174,18 @@ impl Around {
         let c = Around::code(self.center, w)?;
         self.nbr[..self.n].iter().position(|&x| x == c)
     }
+
+    /// The neighbours on the left of a curve that comes in from neighbour `from` and goes on to
+    /// neighbour `to` (positions): those strictly after `from`, clockwise, up to `to`, as bits.
+    pub fn left_of(&self, from: usize, to: usize) -> u16 {
+        let mut m = 0u16;
+        let mut k = (from + 1) % self.n;
+        while k != to {
+            m |= 1 << k;
+            k = (k + 1) % self.n;
+        }
+        m
+    }
 }
 
 /// Case of the cube with lower corner `q`.

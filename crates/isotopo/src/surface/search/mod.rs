@@ -626,13 +626,7 @@ impl Curves {
                 let a = g.at(vi);
                 let ip = a.position(prev)?;
                 let inx = a.position(next)?;
-                // Left: strictly after `prev`, clockwise, up to `next`.
-                let mut m = 0u16;
-                let mut k = (ip + 1) % a.n;
-                while k != inx {
-                    m |= 1 << k;
-                    k = (k + 1) % a.n;
-                }
+                let m = a.left_of(ip, inx);
                 let sc = &mut g.scratch;
                 if sc.mark_stamp[vi as usize] != gen {
                     sc.mark_stamp[vi as usize] = gen;
