@@ -209,6 +209,10 @@ class Report:
     removed: List[Dict[str, Any]] = field(repr=False)
     #: The handles kept (size at least tau, or a closure refused), each as a dict.
     kept: List[Dict[str, Any]] = field(repr=False)
+    #: Handles the well-composed step opened through a critical face nothing else mended (the
+    #: other connectivity saw them there), each closed again by a later pass: the handles of
+    #: ``removed`` add up to ``genus_before - genus_after + handles_opened``.
+    handles_opened: int
     #: Samples whose side of the isovalue changed (walls and the well-composed step).
     samples_changed: int
     #: The isovalue to give another mesher (skimage.measure.marching_cubes, VTK) for the
@@ -630,6 +634,7 @@ def simplify(
         genus_after=d["genus_after"],
         removed=d["removed"],
         kept=d["kept"],
+        handles_opened=d["handles_opened"],
         samples_changed=d["samples_changed"],
         mesh_iso=d["mesh_iso"],
         components_before=d["b0_before"],

@@ -33,13 +33,18 @@
 //!   path is looked for near the face, then up to [`FAR_SWAP_REACH`] away: a thread of one
 //!   sample that passes itself diagonally closes its loop far from there (the MNI map's last
 //!   two critical faces);
-//! - last, two flips within two samples of the cell or three within one, not simple one at a
+//! - two flips within two samples of the cell or three within one, not simple one at a
 //!   time but keeping the topology together, checked in a box round them (`Mender::best_rewrite`,
-//!   `grid::simple::SetTest`): a crack between two sheets that crosses a face diagonally goes round it.
+//!   `grid::simple::SetTest`): a crack between two sheets that crosses a face diagonally goes round it;
+//! - last, and only when asked ([`ComposeOptions::open_handles`], which `simplify` sets when it
+//!   closes handles afterwards): a face whose two corners are one component but no swap mends
+//!   (joined only far away, or through material no single sample cuts) gets the handle the
+//!   other connectivity sees through it (`Mender::open_handle`). Simplify's next pass closes
+//!   that handle elsewhere, with the sample kept ([`Composition::opened`]).
 //!
-//! Every change keeps the components, handles and cavities of the chosen connectivity (a
-//! swap or a rewrite may move a handle, never add or remove one) and lowers the number of
-//! critical cells of the volume, so the step ends; cells no such change mends are left and
+//! Every other change keeps the components, handles and cavities of the chosen connectivity (a
+//! swap or a rewrite may move a handle, never add or remove one); every change lowers the number
+//! of critical cells of the volume, so the step ends; cells no such change mends are left and
 //! counted: specks packed among other pieces with nowhere to go, threads tangled with
 //! themselves. The step looks over the volume plane by plane, then again near what it flipped
 //! until a look flips nothing (a cell left may become mendable once its neighbours change), so
@@ -78,6 +83,22 @@ pub struct Composition {
     /// Sets of two or three flips, not simple one at a time, that keep the topology together
     /// (see `Mender::best_rewrite`).
     pub rewrites: u64,
+    /// Samples flipped to the 6-connected side that each added one handle (see
+    /// [`ComposeOptions::open_handles`]); a wall that closes such a handle must keep them.
+    pub opened: Vec<[i64; 3]>,
+}
+
+/// What [`compose`] may do beyond flips that keep the topology.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ComposeOptions {
+    /// The only side samples may be flipped to, if any (inside: material is only added).
+    /// Default: either.
+    pub only: Option<bool>,
+    /// Where nothing that keeps the topology mends a critical face whose two corners of the
+    /// 6-connected side are one component, flip one of its other corners to that side: one
+    /// handle more, the one the other connectivity already sees through the face. For callers
+    /// that close handles afterwards (simplify with `tau > 0`). Default: off.
+    pub open_handles: bool,
 }
 
 impl Composition {
@@ -97,23 +118,24 @@ pub fn count_volume(vol: &MaskVolume) -> CriticalCounts {
 }
 
 /// Makes the volume well-composed by flipping simple samples, or sets of samples that keep the
-/// topology together (see the module notes).
-/// With `only` set, samples are flipped to that side only (inside: material is only added).
+/// topology together (see the module notes), and, if `opts` allow, samples that open a handle.
 pub fn compose(
     vol: &mut MaskVolume,
     conn: Connectivity,
-    only: Option<bool>,
+    opts: ComposeOptions,
     progress: &dyn Progress,
 ) -> Result<Composition> {
     let before = count_volume(vol);
     let mut mender = Mender {
         conn,
-        only,
+        only: opts.only,
+        open_handles: opts.open_handles,
         original: FastMap::default(),
         pairs: 0,
         moves: 0,
         swaps: 0,
         rewrites: 0,
+        opened: Vec::new(),
         touched: Vec::new(),
     };
     // A cell left may become mendable once later mends change what lies round it: look again
@@ -146,6 +168,7 @@ pub fn compose(
         moves: mender.moves,
         swaps: mender.swaps,
         rewrites: mender.rewrites,
+        opened: mender.opened,
     })
 }
 
@@ -200,12 +223,15 @@ struct Mender {
     conn: Connectivity,
     /// The only side samples may be flipped to, if any.
     only: Option<bool>,
+    /// Whether a face may be mended by opening a handle (see [`ComposeOptions`]).
+    open_handles: bool,
     /// Each flipped sample's first side.
     original: FastMap<[i64; 3], bool>,
     pairs: u64,
     moves: u64,
     swaps: u64,
     rewrites: u64,
+    opened: Vec<[i64; 3]>,
     /// Samples flipped in the current look.
     touched: Vec<[i64; 3]>,
 }
@@ -275,6 +301,9 @@ impl Mender {
             } else if let Some(set) = self.best_rewrite(vol, cell) {
                 self.rewrites += 1;
                 set
+            } else if let Some(b) = self.open_handle(vol, cell) {
+                self.opened.push(b);
+                vec![b]
             } else {
                 continue;
             };
@@ -851,6 +880,43 @@ impl Mender {
         best.map(|(flips, _)| flips)
     }
 
+    /// Where simplify closes handles afterwards ([`ComposeOptions::open_handles`]): a face whose
+    /// two corners `a`, `d` of the 6-connected side are one component, but no swap moved the
+    /// handle through it aside (the path joining them runs far away, or through material no
+    /// single sample cuts): the other corner `b` whose flip to that side joins exactly `a`'s
+    /// and `d`'s pieces round it, which adds one handle (the one the other connectivity sees
+    /// through the face) and changes no component or cavity.
+    ///
+    /// ```text
+    ///   a .        a b        a ~~~ d joined far away: one handle more, through b; simplify
+    ///   . d   ->   . d        closes it elsewhere and keeps b
+    /// ```
+    fn open_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<[i64; 3]> {
+        let side = self.six_side();
+        if !self.open_handles || self.only.is_some_and(|s| s != side) || cell.0 == CellKind::Cube {
+            return None;
+        }
+        let cs = corners(vol, cell);
+        let (joined, others): (Vec<[i64; 3]>, Vec<[i64; 3]>) =
+            cs.iter().partition(|p| vol.get(p[0], p[1], p[2]) == side);
+        if joined.len() != 2 || others.len() != 2 {
+            return None;
+        }
+        let mut best: Option<([i64; 3], i64)> = None;
+        for &b in &others {
+            if self.numbers(vol, b) != (2, 1) || same_piece(vol, b, side, joined[0], joined[1]) {
+                continue;
+            }
+            let d = change(vol, &[b]);
+            if d < 0 && best.is_none_or(|(_, x)| d < x) {
+                best = Some((b, d));
+            }
+        }
+        let (b, _) = best?;
+        // Last, as it may visit a whole component: joined elsewhere, else b would join two.
+        (one_component(vol, joined[0], joined[1], side) == Some(true)).then_some(b)
+    }
+
     /// The topological numbers of `p` as (6-connected side, other side).
     fn numbers(&self, vol: &MaskVolume, p: [i64; 3]) -> (usize, usize) {
         let (inside, outside) = topological_numbers(vol, p, self.conn);
@@ -1059,6 +1125,49 @@ fn side_path(
     None
 }
 
+/// Whether `a` and `d` lie in one component of `side` (6-adjacent samples; the padding beyond
+/// the volume is outside and joins everything on the border): searched from both ends, the
+/// smaller side a whole level at a time. `None` when the search would visit more than
+/// [`COMPONENT_BUDGET`] samples (a component of a large scan: the face is left).
+fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Option<bool> {
+    // Keys packed into one word (the volume plus its padding fits 21 bits a coordinate).
+    let key = |q: [i64; 3]| q.iter().fold(0u64, |k, &c| (k << 21) | (c + 1) as u64);
+    if vol.dims.iter().any(|&n| n + 2 >= 1 << 21) {
+        return None;
+    }
+    let inside = |q: [i64; 3]| (0..3).all(|c| q[c] >= -1 && q[c] <= vol.dims[c] as i64);
+    let mut seen: [FastMap<u64, ()>; 2] = [FastMap::default(), FastMap::default()];
+    let mut levels = [vec![a], vec![d]];
+    seen[0].insert(key(a), ());
+    seen[1].insert(key(d), ());
+    while !levels[0].is_empty() && !levels[1].is_empty() {
+        let k = usize::from(levels[1].len() < levels[0].len());
+        let mut next = Vec::new();
+        for q in std::mem::take(&mut levels[k]) {
+            for e in STEPS {
+                let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
+                if !inside(r) || state(vol, r) != side || seen[k].contains_key(&key(r)) {
+                    continue;
+                }
+                if seen[1 - k].contains_key(&key(r)) {
+                    return Some(true);
+                }
+                seen[k].insert(key(r), ());
+                next.push(r);
+            }
+        }
+        if seen[0].len() + seen[1].len() > COMPONENT_BUDGET {
+            return None;
+        }
+        levels[k] = next;
+    }
+    // One side's component was searched whole without meeting the other end.
+    Some(false)
+}
+
+/// Most samples [`one_component`] visits (about 40 MB of maps).
+const COMPONENT_BUDGET: usize = 1 << 20;
+
 fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {
     set(vol, p, !vol.get(p[0], p[1], p[2]));
 }
@@ -1176,11 +1285,13 @@ mod tests {
         Mender {
             conn: Connectivity::Six,
             only: None,
+            open_handles: false,
             original: FastMap::default(),
             pairs: 0,
             moves: 0,
             swaps: 0,
             rewrites: 0,
+            opened: Vec::new(),
             touched: Vec::new(),
         }
     }
@@ -1312,5 +1423,73 @@ mod tests {
         }
         assert_eq!(betti(&vol), before);
         assert_eq!(count_volume(&vol).total(), critical - 1);
+    }
+
+    /// `one_component` against labels by a plain flood fill over the padded grid, on random
+    /// masks of several densities, for pairs of samples of either side (the outside joined
+    /// through the padding).
+    #[test]
+    fn one_component_agrees_with_a_flood_fill() {
+        let mut rng = crate::test_rng::Rng(0x0c0f_fee5);
+        let n = [9i64, 8, 7];
+        let (mut same, mut apart) = (0, 0);
+        for round in 0..40 {
+            let density = [0.2, 0.3, 0.5, 0.7, 0.8][round % 5];
+            let mut vol = MaskVolume::new(n.map(|x| x as usize), Frame::identity());
+            for z in 0..n[2] {
+                for y in 0..n[1] {
+                    for x in 0..n[0] {
+                        set(&mut vol, [x, y, z], rng.unit() < density);
+                    }
+                }
+            }
+            for side in [true, false] {
+                let label = flood_labels(&vol, n, side);
+                let at = |q: [i64; 3]| ((q[2] + 1) * (n[1] + 2) + q[1] + 1) * (n[0] + 2) + q[0] + 1;
+                let mut random = || [0, 1, 2].map(|k| rng.below(n[k] as u64) as i64);
+                for _ in 0..300 {
+                    let (a, d) = (random(), random());
+                    if a == d || state(&vol, a) != side || state(&vol, d) != side {
+                        continue;
+                    }
+                    let expected = label[at(a) as usize] == label[at(d) as usize];
+                    assert_eq!(one_component(&vol, a, d, side), Some(expected));
+                    *if expected { &mut same } else { &mut apart } += 1;
+                }
+            }
+        }
+        assert!(same > 100 && apart > 100, "{same} joined, {apart} apart");
+    }
+
+    /// Labels of the 6-connected pieces of `side` over the grid padded by one sample (outside).
+    fn flood_labels(vol: &MaskVolume, n: [i64; 3], side: bool) -> Vec<usize> {
+        let p = n.map(|x| x + 2);
+        let index = |q: [i64; 3]| ((q[2] * p[1] + q[1]) * p[0] + q[0]) as usize;
+        let of = |q: [i64; 3]| state(vol, [q[0] - 1, q[1] - 1, q[2] - 1]);
+        let mut label = vec![usize::MAX; (p[0] * p[1] * p[2]) as usize];
+        let mut next = 0;
+        for z in 0..p[2] {
+            for y in 0..p[1] {
+                for x in 0..p[0] {
+                    if label[index([x, y, z])] != usize::MAX || of([x, y, z]) != side {
+                        continue;
+                    }
+                    let mut stack = vec![[x, y, z]];
+                    label[index([x, y, z])] = next;
+                    while let Some(q) = stack.pop() {
+                        for e in STEPS {
+                            let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
+                            let inside = (0..3).all(|k| r[k] >= 0 && r[k] < p[k]);
+                            if inside && label[index(r)] == usize::MAX && of(r) == side {
+                                label[index(r)] = next;
+                                stack.push(r);
+                            }
+                        }
+                    }
+                    next += 1;
+                }
+            }
+        }
+        label
     }
 }

@@ -894,6 +894,8 @@ impl Simplified {
                 "pair_moves": c.pairs,
                 "samples": c.flips.iter().map(|f| f.0).collect::<Vec<_>>(),
             })),
+            // The removed handles add up to genus_before - genus_after + handles_opened.
+            "handles_opened": self.outcome.composition.as_ref().map_or(0, |c| c.opened.len()),
             "other_connectivity": surface.connectivity.other().number(),
             "b0_after_other": self.after_other.b0,
             "genus_after_other": self.after_other.b1,

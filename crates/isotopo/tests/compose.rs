@@ -6,7 +6,7 @@ mod common;
 
 use common::oracle::betti;
 use common::{Rng, BOTH};
-use isotopo::compose::Composition;
+use isotopo::compose::{ComposeOptions, Composition};
 use isotopo::grid::Axis;
 use isotopo::progress::NoProgress;
 use isotopo::topology::{Connectivity, SurfaceOptions};
@@ -127,7 +127,7 @@ fn compose_and_check(c: &Case, conn: Connectivity) -> ((usize, usize), [u64; 4])
 /// The well-composed step alone, on the masks of the case's volume.
 fn compose_alone(c: &Case, conn: Connectivity) -> Composition {
     let mut masks = common::masks(&c.vol, c.iso, conn, Axis::Z);
-    isotopo::compose::compose(&mut masks, conn, None, &NoProgress).unwrap()
+    isotopo::compose::compose(&mut masks, conn, Default::default(), &NoProgress).unwrap()
 }
 
 /// The step's counters: pairs, specks moved, handles swapped, rewrites.
@@ -431,9 +431,13 @@ fn the_step_run_again_flips_nothing() {
         for conn in BOTH {
             for only in [None, Some(true), Some(false)] {
                 let mut masks = common::masks(&vol, iso, conn, Axis::Z);
-                let first = isotopo::compose::compose(&mut masks, conn, only, &NoProgress).unwrap();
+                let opts = ComposeOptions {
+                    only,
+                    ..Default::default()
+                };
+                let first = isotopo::compose::compose(&mut masks, conn, opts, &NoProgress).unwrap();
                 let second =
-                    isotopo::compose::compose(&mut masks, conn, only, &NoProgress).unwrap();
+                    isotopo::compose::compose(&mut masks, conn, opts, &NoProgress).unwrap();
                 assert_eq!(second.before, first.left);
                 cases += 1;
                 if !second.flips.is_empty() {
@@ -447,4 +451,215 @@ fn the_step_run_again_flips_nothing() {
         "{} of {cases} flipped more the second time: {again:?}",
         again.len()
     );
+}
+
+/// Two threads passing each other diagonally at a face (as in `patterns`' "threads passing
+/// each other"), 55 samples from the block both come from; each goes on to a block of its own.
+/// Connectivity 6 sees one component and no handle (a tree of blocks and threads), 26 one
+/// handle through the face. The corners of the face are joined only through the first block,
+/// beyond any box a swap looks in, and neither is simple (each joins its thread's two halves),
+/// so nothing that keeps the topology mends the face. Unless `joined`, thread b stops short of
+/// block 1: then the corners lie in two components.
+///
+/// ```text
+///   block 1 ==== thread a ====[a]==== block 2          (a, d: the face's corners)
+///           ==== thread b ====[d]==== block 3
+/// ```
+fn threads_joined_far_away(joined: bool) -> InMemoryVolume {
+    let a = [
+        [6, 9, 4],
+        [60, 9, 4],
+        [60, 10, 4],
+        [60, 10, 3],
+        [60, 30, 3],
+        [74, 30, 3],
+    ];
+    let b = [
+        [if joined { 6 } else { 8 }, 35, 5],
+        [70, 35, 5],
+        [70, 10, 5],
+        [61, 10, 5],
+        [61, 25, 5],
+        [41, 25, 5],
+    ];
+    shape([82, 40, 10], |x, y, z| {
+        let p = [x, y, z];
+        let block1 = (1..=5).contains(&x) && (1..=38).contains(&y) && (1..=8).contains(&z);
+        let block2 = in_cube(p, [74, 27, 1], 5);
+        let block3 = in_cube(p, [36, 22, 4], 5);
+        block1 || block2 || block3 || on_path(p, &a) || on_path(p, &b)
+    })
+}
+
+/// The samples of a mask volume (axis z: local coordinates are the volume's), x fastest.
+fn read_back(masks: &isotopo::grid::MaskVolume) -> Vec<bool> {
+    let [nx, ny, nz] = masks.dims;
+    let mut m = Vec::with_capacity(nx * ny * nz);
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                m.push(masks.get(x as i64, y as i64, z as i64));
+            }
+        }
+    }
+    m
+}
+
+/// A face whose corners are joined only far away is left by the step that keeps the topology;
+/// allowed to open a handle, the step mends it by filling one other corner, which gives
+/// connectivity 6 the handle connectivity 26 sees through the face: one handle more, no
+/// component or cavity, and both connectivities agree (the cell-counting oracle).
+#[test]
+fn a_face_joined_only_far_away_opens_the_handle_the_other_connectivity_sees() {
+    let vol = threads_joined_far_away(true);
+    let dims = vol.dims();
+    let before = common::mask_of(&vol, 0.0);
+    assert_eq!(common::critical_cells(&before, dims), (1, 0));
+    let b6 = betti(&before, dims, Connectivity::Six);
+    let b26 = betti(&before, dims, Connectivity::TwentySix);
+    assert_eq!((b6.0, b6.1, b6.2), (1, 0, 0));
+    assert_eq!((b26.0, b26.1, b26.2), (1, 1, 0));
+    let conn = Connectivity::Six;
+
+    let mut masks = common::masks(&vol, 0.0, conn, Axis::Z);
+    let kept = isotopo::compose::compose(&mut masks, conn, Default::default(), &NoProgress);
+    let kept = kept.unwrap();
+    assert_eq!(
+        (kept.left.faces, kept.left.cubes),
+        (1, 0),
+        "no swap reaches"
+    );
+    assert!(kept.opened.is_empty());
+    assert_eq!(betti(&read_back(&masks), dims, conn), b6);
+
+    for only in [None, Some(true)] {
+        let mut masks = common::masks(&vol, 0.0, conn, Axis::Z);
+        let opts = ComposeOptions {
+            only,
+            open_handles: true,
+        };
+        let c = isotopo::compose::compose(&mut masks, conn, opts, &NoProgress).unwrap();
+        let after = read_back(&masks);
+        assert_eq!(common::critical_cells(&after, dims), (0, 0), "{only:?}");
+        assert_eq!((c.left.faces, c.left.cubes), (0, 0));
+        // One of the face's two outside corners, filled.
+        assert_eq!(c.flips.len(), 1, "{only:?}: {:?}", c.flips);
+        assert!(matches!(c.flips[0].0, [61, 10, 4] | [60, 10, 5]));
+        assert_eq!(c.opened, vec![c.flips[0].0]);
+        for k in [Connectivity::Six, Connectivity::TwentySix] {
+            assert_eq!(betti(&after, dims, k), b26, "{only:?}, {}", k.number());
+        }
+    }
+    // Cut-only cannot fill the corner.
+    let mut masks = common::masks(&vol, 0.0, conn, Axis::Z);
+    let opts = ComposeOptions {
+        only: Some(false),
+        open_handles: true,
+    };
+    let c = isotopo::compose::compose(&mut masks, conn, opts, &NoProgress).unwrap();
+    assert!(c.opened.is_empty());
+    // Corners in two components: a fill would join them, not open a handle.
+    let apart = threads_joined_far_away(false);
+    let before = common::mask_of(&apart, 0.0);
+    let b6 = betti(&before, dims, conn);
+    assert_eq!((b6.0, b6.1, b6.2), (2, 0, 0));
+    let mut masks = common::masks(&apart, 0.0, conn, Axis::Z);
+    let opts = ComposeOptions {
+        only: None,
+        open_handles: true,
+    };
+    let c = isotopo::compose::compose(&mut masks, conn, opts, &NoProgress).unwrap();
+    assert!(c.opened.is_empty(), "{:?}", c.opened);
+    assert_eq!(betti(&read_back(&masks), dims, conn), b6);
+}
+
+/// The same face through simplify: at tau 20 and tau inf the step opens the handle, the next
+/// pass closes it away from the face (the corner is kept), and the output is well-composed
+/// with no handle under either connectivity; at tau 0 (the step alone) the topology is kept
+/// and the face is left.
+#[test]
+fn simplify_closes_the_handle_the_step_opened_elsewhere() {
+    let vol = threads_joined_far_away(true);
+    let dims = vol.dims();
+    for tau in [0.0, 20.0, f64::INFINITY] {
+        let opts = SimplifyOptions {
+            surface: SurfaceOptions {
+                iso: 0.0,
+                connectivity: Connectivity::Six,
+                ..SurfaceOptions::default()
+            },
+            tau,
+            ..SimplifyOptions::default()
+        };
+        let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress).unwrap();
+        let after = common::mask_of(&done.edited().unwrap(), 0.0);
+        let c = done.outcome.composition.as_ref().expect("on by default");
+        let left = common::critical_cells(&after, dims);
+        assert_eq!((c.left.faces, c.left.cubes), (left.0 as u64, left.1 as u64));
+        if tau == 0.0 {
+            assert!(c.opened.is_empty());
+            assert_eq!(left, (1, 0), "tau 0 keeps the topology");
+            assert_eq!(betti(&after, dims, Connectivity::Six), (1, 0, 0, 1));
+            continue;
+        }
+        eprintln!(
+            "tau {tau}: opened {:?}, left {left:?}, flips {:?}, removed {}",
+            c.opened,
+            c.flips,
+            done.outcome.removed.len()
+        );
+        for r in &done.outcome.removed {
+            eprintln!("  {:?} {:?}", r.operation, r.samples);
+        }
+        assert_eq!(c.opened.len(), 1, "tau {tau}");
+        assert_eq!(left, (0, 0), "tau {tau}");
+        for k in [Connectivity::Six, Connectivity::TwentySix] {
+            let t = betti(&after, dims, k);
+            assert_eq!((t.0, t.1, t.2), (1, 0, 0), "tau {tau}, {}", k.number());
+        }
+    }
+}
+
+/// The embryo's last critical face (`tests/data/embryo-opened-face.txt`): nothing that keeps
+/// the topology mends it, its corners are one component, and once the step fills an outside
+/// corner the cheapest wall across the handle that opens is that corner again. Simplify keeps
+/// the corner (a wall that flipped it back would bring the face back, pass after pass) and
+/// closes the handle elsewhere: well-composed, both connectivities agree (the cell-counting
+/// oracle), components and cavities kept.
+#[test]
+fn the_embryos_last_face_is_mended_by_a_handle_closed_elsewhere() {
+    let vol = common::fixture("embryo-opened-face.txt");
+    let dims = vol.dims();
+    let before = common::mask_of(&vol, 0.0);
+    let conn = Connectivity::Six;
+    let b6 = betti(&before, dims, conn);
+    for tau in [20.0, f64::INFINITY] {
+        let opts = SimplifyOptions {
+            surface: SurfaceOptions {
+                iso: 0.0,
+                connectivity: conn,
+                ..SurfaceOptions::default()
+            },
+            tau,
+            ..SimplifyOptions::default()
+        };
+        let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress)
+            .unwrap_or_else(|e| panic!("tau {tau}: {e}"));
+        let after = common::mask_of(&done.edited().unwrap(), 0.0);
+        let c = done.outcome.composition.as_ref().expect("on by default");
+        assert!(!c.opened.is_empty(), "tau {tau}: no handle opened");
+        assert_eq!(common::critical_cells(&after, dims), (0, 0), "tau {tau}");
+        let (a6, a26) = (betti(&after, dims, conn), betti(&after, dims, conn.other()));
+        assert_eq!(a6, a26, "tau {tau}: the connectivities differ");
+        assert_eq!(
+            (a6.0, a6.2),
+            (b6.0, b6.2),
+            "tau {tau}: components, cavities"
+        );
+        assert_eq!(
+            a6.1,
+            done.outcome.kept.len() as i64,
+            "tau {tau}: handles kept"
+        );
+    }
 }

@@ -372,6 +372,13 @@ fn print_composition(done: &isotopo::Simplified) {
             },
             group(c.flips.len() as u64)
         );
+        if !c.opened.is_empty() {
+            println!(
+                "            {} handles opened through critical faces nothing else mended (the other \
+                 connectivity saw them there), then closed elsewhere: counted among those removed",
+                group(c.opened.len() as u64)
+            );
+        }
     } else {
         println!(
             "composed    not asked (--no-well-composed): genus {} under the other connectivity",

@@ -477,6 +477,10 @@ struct Run<'a> {
     /// What the well-composed steps did: counts before the first and after the last, and every
     /// sample they flipped (local coordinates).
     composition: Option<(crate::compose::Composition, FastMap<[i64; 3], ()>)>,
+    /// Samples the well-composed step flipped to open a handle (see
+    /// [`crate::compose::ComposeOptions::open_handles`]): no wall flips them back, so the handle
+    /// is closed elsewhere and the face it went through stays mended.
+    locked: FastMap<[i64; 3], ()>,
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
@@ -504,6 +508,7 @@ impl<'a> Run<'a> {
             basis: Vec::new(),
             original: FastMap::default(),
             composition: None,
+            locked: FastMap::default(),
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
@@ -523,9 +528,11 @@ impl<'a> Run<'a> {
             let closed = self.sweep_pass(vol)?;
             self.trim_walls(vol, from);
             // Well-composed after every pass that changed something, so that the last pass (the
-            // one that closes nothing) analyses and certifies the volume as it is written.
+            // one that closes nothing) analyses and certifies the volume as it is written. A
+            // handle opened needs a pass after it to be closed.
+            let another = self.passes < first + MAX_PASSES;
             let flipped = if self.opts.well_composed {
-                self.compose(vol)?
+                self.compose(vol, another)?
             } else {
                 0
             };
@@ -718,7 +725,8 @@ impl<'a> Run<'a> {
         }
         let (opts, affine) = (&self.opts, self.affine);
         let graph = &mut caches.graph;
-        let done = close_handle(vol, opts, &l, &candidates, affine, graph, &mut self.refused);
+        let walling = (graph, &mut self.refused, &self.locked);
+        let done = close_handle(vol, opts, &l, &candidates, affine, walling);
         let Some(closed) = done else {
             caches.failed.insert(key, ());
             self.kept.push((s, at.kept(KeepReason::ClosureFailed)));
@@ -843,14 +851,21 @@ impl<'a> Run<'a> {
     }
 
     /// Makes the volume well-composed (see [`crate::compose`]); returns how many samples it
-    /// flipped. Fill-only flips only to inside, cut-only only to outside.
-    fn compose(&mut self, vol: &mut MaskVolume) -> Result<usize> {
+    /// flipped. Fill-only flips only to inside, cut-only only to outside. Where the step opens
+    /// a handle to mend a face (only when this run closes handles and `another` pass follows,
+    /// which closes it), the sample is locked.
+    fn compose(&mut self, vol: &mut MaskVolume, another: bool) -> Result<usize> {
         let only = match self.opts.mode {
             Mode::Both => None,
             Mode::FillOnly => Some(true),
             Mode::CutOnly => Some(false),
         };
-        let c = crate::compose::compose(vol, self.conn, only, self.progress)?;
+        let opts = crate::compose::ComposeOptions {
+            only,
+            open_handles: another && self.opts.tau > 0.0 && self.budget != Some(0),
+        };
+        let c = crate::compose::compose(vol, self.conn, opts, self.progress)?;
+        self.locked.extend(c.opened.iter().map(|&q| (q, ())));
         let flipped = c.flips.len();
         self.forget_near_samples(c.flips.iter().map(|&(q, _)| q));
         let (total, samples) = self.composition.get_or_insert_with(|| {
@@ -871,6 +886,7 @@ impl<'a> Run<'a> {
         total.moves += c.moves;
         total.swaps += c.swaps;
         total.rewrites += c.rewrites;
+        total.opened.extend(c.opened);
         Ok(flipped)
     }
 

@@ -8,7 +8,7 @@ use crate::closure::{self, base_thickness, opposite, Operation};
 use crate::grid::MaskVolume;
 use crate::loops::{self, HandleLoops, Loop};
 use crate::surface::geometry::Geometry;
-use crate::surface::search::{Graph, GraphCache};
+use crate::surface::search::{FastMap, Graph, GraphCache};
 use crate::surface::Vertex;
 use crate::topology::cases::{cases, Connectivity};
 use crate::volume::{Affine, BBox};
@@ -235,7 +235,7 @@ fn close_loop(
     lp: &Loop,
     partner: &[Vertex],
     ops: &[Operation],
-    (reach, graph, refused): (WallReach, &mut GraphCache, &mut Refused),
+    (reach, graph, refused, locked): (WallReach, &mut GraphCache, &mut Refused, &Locked),
 ) -> Option<(closure::Applied, Wall)> {
     let points: Vec<[f64; 3]> = lp.vertices.iter().map(|v| v.midpoint()).collect();
     let centre = peel_centre(&points, partner);
@@ -273,6 +273,7 @@ fn close_loop(
                         }
                         Wall::Fan(_) | Wall::Single(_) => unreachable!("matched above"),
                     };
+                    let region: Vec<[i64; 3]> = unlocked(region, locked);
                     let target = peel_target(&points, partner, lp.length, b);
                     peeled = closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS);
                     match peeled.first() {
@@ -285,7 +286,7 @@ fn close_loop(
                 lp: &lp.vertices,
                 partner,
                 op,
-                wall: samples,
+                wall: unlocked(samples, locked),
                 certified: !matches!(w, Wall::Fan(_) | Wall::Single(_)),
             };
             let r = closure::close(vol, conn, attempt, graph);
@@ -299,6 +300,19 @@ fn close_loop(
         }
     }
     None
+}
+
+/// Samples no wall changes: each opened a handle to mend a critical face (see
+/// [`crate::compose::ComposeOptions::open_handles`]), and a wall that flipped it back would
+/// bring the face back; the handle is closed elsewhere.
+pub(super) type Locked = FastMap<[i64; 3], ()>;
+
+/// A wall or a region to peel in, without the locked samples.
+fn unlocked(mut samples: Vec<[i64; 3]>, locked: &Locked) -> Vec<[i64; 3]> {
+    if !locked.is_empty() {
+        samples.retain(|q| !locked.contains_key(q));
+    }
+    samples
 }
 
 /// The samples near a loop's fan, gathered once as far as the walls tried so far need.
@@ -334,11 +348,11 @@ pub(super) fn close_handle<'l>(
     l: &'l HandleLoops,
     candidates: &[(LoopKind, &'l Loop)],
     affine: &Affine,
-    graph: &mut GraphCache,
-    refused: &mut Refused,
+    (graph, refused, locked): (&mut GraphCache, &mut Refused, &Locked),
 ) -> Option<Closed<'l>> {
     let mut by = |reach: WallReach| {
-        close_handle_by(vol, opts, l, candidates, affine, (graph, refused), reach)
+        let walling = (&mut *graph, &mut *refused, locked);
+        close_handle_by(vol, opts, l, candidates, affine, walling, reach)
     };
     by(WallReach::Across).or_else(|| by(WallReach::Along))
 }
@@ -377,7 +391,7 @@ fn close_handle_by<'l>(
     l: &'l HandleLoops,
     candidates: &[(LoopKind, &'l Loop)],
     affine: &Affine,
-    (graph, refused): (&mut GraphCache, &mut Refused),
+    (graph, refused, locked): (&mut GraphCache, &mut Refused, &Locked),
     reach: WallReach,
 ) -> Option<Closed<'l>> {
     let conn = opts.surface.connectivity;
@@ -392,9 +406,14 @@ fn close_handle_by<'l>(
     for &(which, lp) in candidates {
         let partner = partner_of(which).map_or(&[][..], |x| &x.vertices);
         let ops = ops_for(lp, !partner.is_empty());
-        if let Some((applied, wall)) =
-            close_loop(vol, conn, lp, partner, &ops, (reach, graph, refused))
-        {
+        if let Some((applied, wall)) = close_loop(
+            vol,
+            conn,
+            lp,
+            partner,
+            &ops,
+            (reach, graph, refused, locked),
+        ) {
             return Some(Closed {
                 which,
                 lp: std::borrow::Cow::Borrowed(lp),
@@ -430,7 +449,7 @@ fn close_handle_by<'l>(
         &found,
         &lp.vertices,
         &ops,
-        (reach, graph, refused),
+        (reach, graph, refused, locked),
     ) {
         return Some(Closed {
             which: other,
@@ -440,7 +459,7 @@ fn close_handle_by<'l>(
             wall,
         });
     }
-    close_basis(vol, opts, l, affine, (graph, refused), reach)
+    close_basis(vol, opts, l, affine, (graph, refused, locked), reach)
 }
 
 /// Last, the handle's two curves that cross once (its cut and the loop round its cycle, see
@@ -451,7 +470,7 @@ fn close_basis<'l>(
     opts: &SimplifyOptions,
     l: &'l HandleLoops,
     affine: &Affine,
-    (graph, refused): (&mut GraphCache, &mut Refused),
+    (graph, refused, locked): (&mut GraphCache, &mut Refused, &Locked),
     reach: WallReach,
 ) -> Option<Closed<'l>> {
     let conn = opts.surface.connectivity;
@@ -466,7 +485,8 @@ fn close_basis<'l>(
             fractions: vol.fractions.as_ref(),
         };
         let lx = loops::describe(vol, x, Some(y), &geometry);
-        if let Some((applied, wall)) = close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused))
+        if let Some((applied, wall)) =
+            close_loop(vol, conn, &lx, y, &ops, (reach, graph, refused, locked))
         {
             return Some(Closed {
                 which: basis_kind(l, x),
