@@ -357,22 +357,33 @@ fn areas_typed<T: Sample>(
     let (nx, ny) = (values.nx, values.ny);
     let scaling = values.scaling;
     let identity = scaling.is_identity();
+    let value = |raw: T| match identity {
+        true => raw.to_f64(),
+        false => scaling.apply(raw.to_f64()),
+    };
     let mut areas = vec![0.0; s.ribbons.len()];
     for cube in &s.cubes {
         let case = &table[cube.case as usize];
-        // Corner values; NaN for padding.
-        let mut v = [f64::NAN; 8];
-        for c in 0..8usize {
-            let x = cube.i as isize - 1 + (c & 1) as isize;
-            let y = cube.j as isize - 1 + ((c >> 1) & 1) as isize;
-            if x < 0 || y < 0 || x >= nx as isize || y >= ny as isize {
-                continue;
+        let (i, j) = (cube.i as usize, cube.j as usize);
+        // Corner values; NaN for padding. Most cubes have all eight corners in the volume.
+        let v = match (lower, upper) {
+            (Some(lo), Some(up)) if (1..nx).contains(&i) && (1..ny).contains(&j) => {
+                let b = (j - 1) * nx + i - 1;
+                let (b2, b3) = (b + nx, b + nx + 1);
+                [
+                    lo[b],
+                    lo[b + 1],
+                    lo[b2],
+                    lo[b3],
+                    up[b],
+                    up[b + 1],
+                    up[b2],
+                    up[b3],
+                ]
+                .map(value)
             }
-            if let Some(p) = if c & 4 == 0 { lower } else { upper } {
-                let raw = p[y as usize * nx + x as usize].to_f64();
-                v[c] = if identity { raw } else { scaling.apply(raw) };
-            }
-        }
+            _ => corner_values(i, j, lower, upper, nx, ny, value),
+        };
         let mut pts = [[0.0f64; 3]; 12];
         let mut have = 0u16;
         for n in 0..case.n_triangles as usize {
@@ -397,11 +408,38 @@ fn areas_typed<T: Sample>(
                 cof[2][0] * c[0] + cof[2][1] * c[1] + cof[2][2] * c[2],
             ];
             let a = 0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            areas[s.piece_ribbon[(cube.first_piece + case.triangle_piece[n] as u32) as usize]
-                as usize] += a;
+            let piece = cube.first_piece + case.triangle_piece[n] as u32;
+            areas[s.piece_ribbon[piece as usize] as usize] += a;
         }
     }
     areas
+}
+
+/// The values at the 8 corners of the cube at padded (`i`, `j`) between `lower` and `upper`
+/// (`None`: a padding plane); NaN beyond the volume.
+fn corner_values<T: Sample>(
+    i: usize,
+    j: usize,
+    lower: Option<&[T]>,
+    upper: Option<&[T]>,
+    nx: usize,
+    ny: usize,
+    value: impl Fn(T) -> f64,
+) -> [f64; 8] {
+    let mut v = [f64::NAN; 8];
+    for (c, out) in v.iter_mut().enumerate() {
+        let (x, y) = (
+            (i + (c & 1)).wrapping_sub(1),
+            (j + ((c >> 1) & 1)).wrapping_sub(1),
+        );
+        if x >= nx || y >= ny {
+            continue;
+        }
+        if let Some(p) = if c & 4 == 0 { lower } else { upper } {
+            *out = value(p[y * nx + x]);
+        }
+    }
+    v
 }
 
 /// Slices per parallel batch: enough work per thread, little memory.
