@@ -275,14 +275,22 @@ impl Tube<'_> {
     fn cubes(&self) -> &FastMap<[i64; 3], ()> {
         self.cubes.get_or_init(|| {
             let mut cubes = FastMap::default();
+            // Consecutive vertices are a step apart: most of a vertex's cubes were its
+            // predecessor's too, and only the others are inserted.
+            let mut prev: Option<[i64; 3]> = None;
             for v in self.lp {
                 for dz in -2..=2 {
                     for dy in -2..=2 {
                         for dx in -2..=2 {
-                            cubes.insert([v.p[0] + dx, v.p[1] + dy, v.p[2] + dz], ());
+                            let c = [v.p[0] + dx, v.p[1] + dy, v.p[2] + dz];
+                            if prev.is_some_and(|q| (0..3).all(|k| (c[k] - q[k]).abs() <= 2)) {
+                                continue;
+                            }
+                            cubes.insert(c, ());
                         }
                     }
                 }
+                prev = Some(v.p);
             }
             cubes
         })
