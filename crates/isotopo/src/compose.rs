@@ -85,6 +85,8 @@ pub struct Composition {
     pub rewrites: u64,
     /// Samples flipped to the 6-connected side that each added one handle (see
     /// [`ComposeOptions::open_handles`]); a wall that closes such a handle must keep them.
+    /// Volume-local coordinates from [`compose`]; `simplify`'s outcome gives them in the
+    /// volume's own, like `flips`, and only those whose handle a pass closed.
     pub opened: Vec<[i64; 3]>,
 }
 
@@ -1125,10 +1127,46 @@ fn side_path(
     None
 }
 
+/// Takes back a handle [`Mender::open_handle`] opened with sample `b` if it is still there:
+/// flips `b` back when its two pieces of the 6-connected side round it are one component
+/// without it (so the flip removes exactly one handle, and changes no component or cavity);
+/// says whether it did.
+pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
+    let side = conn == Connectivity::Six;
+    if !within(vol, b) || state(vol, b) != side {
+        return false;
+    }
+    toggle(vol, b);
+    let numbers = topological_numbers(vol, b, conn);
+    let numbers = if side {
+        numbers
+    } else {
+        (numbers.1, numbers.0)
+    };
+    let faces = STEPS.map(|e| [b[0] + e[0], b[1] + e[1], b[2] + e[2]]);
+    let ends = faces
+        .iter()
+        .filter(|&&q| state(vol, q) == side)
+        .find_map(|&a| {
+            let d = faces
+                .iter()
+                .find(|&&q| state(vol, q) == side && !same_piece(vol, b, side, a, q))?;
+            Some((a, *d))
+        });
+    let joined = numbers == (2, 1)
+        && ends.is_some_and(|(a, d)| one_component(vol, a, d, side) == Some(true));
+    if !joined {
+        toggle(vol, b);
+    }
+    joined
+}
+
 /// Whether `a` and `d` lie in one component of `side` (6-adjacent samples; the padding beyond
 /// the volume is outside and joins everything on the border): searched from both ends, the
-/// smaller side a whole level at a time. `None` when the search would visit more than
-/// [`COMPONENT_BUDGET`] samples (a component of a large scan: the face is left).
+/// smaller side a whole level at a time, within [`COMPONENT_PLANES`] planes of `a` (out of
+/// core, each plane it reads stays loaded). `None` when the search would visit more than
+/// [`COMPONENT_BUDGET`] samples, or a side ends having reached that plane limit (a component
+/// of a large scan: the face is left).
 fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Option<bool> {
     // Keys packed into one word (the volume plus its padding fits 21 bits a coordinate).
     let key = |q: [i64; 3]| q.iter().fold(0u64, |k, &c| (k << 21) | (c + 1) as u64);
@@ -1136,6 +1174,9 @@ fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Opti
         return None;
     }
     let inside = |q: [i64; 3]| (0..3).all(|c| q[c] >= -1 && q[c] <= vol.dims[c] as i64);
+    let near = |q: [i64; 3]| (q[2] - a[2]).abs() <= COMPONENT_PLANES;
+    // Whether each side's search met the plane limit: then its end proves nothing.
+    let mut limited = [false; 2];
     let mut seen: [FastMap<u64, ()>; 2] = [FastMap::default(), FastMap::default()];
     let mut levels = [vec![a], vec![d]];
     seen[0].insert(key(a), ());
@@ -1146,7 +1187,14 @@ fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Opti
         for q in std::mem::take(&mut levels[k]) {
             for e in STEPS {
                 let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
-                if !inside(r) || state(vol, r) != side || seen[k].contains_key(&key(r)) {
+                if !inside(r) || seen[k].contains_key(&key(r)) {
+                    continue;
+                }
+                if !near(r) {
+                    limited[k] = true;
+                    continue;
+                }
+                if state(vol, r) != side {
                     continue;
                 }
                 if seen[1 - k].contains_key(&key(r)) {
@@ -1161,12 +1209,17 @@ fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Opti
         }
         levels[k] = next;
     }
-    // One side's component was searched whole without meeting the other end.
-    Some(false)
+    // One side's component was searched whole without meeting the other end (unless the plane
+    // limit cut it).
+    let ended = if levels[0].is_empty() { 0 } else { 1 };
+    (!limited[ended]).then_some(false)
 }
 
 /// Most samples [`one_component`] visits (about 40 MB of maps).
 const COMPONENT_BUDGET: usize = 1 << 20;
+
+/// How far from the face, in planes, [`one_component`] searches.
+const COMPONENT_PLANES: i64 = 64;
 
 fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {
     set(vol, p, !vol.get(p[0], p[1], p[2]));
@@ -1459,6 +1512,26 @@ mod tests {
             }
         }
         assert!(same > 100 && apart > 100, "{same} joined, {apart} apart");
+    }
+
+    /// A column of inside samples 150 planes tall: its ends are one component, but beyond the
+    /// planes searched from the first; near ones are found joined.
+    #[test]
+    fn one_component_searches_only_planes_near_the_face() {
+        let mut vol = MaskVolume::new([3, 3, 150], Frame::identity());
+        for z in 0..150 {
+            set(&mut vol, [1, 1, z], true);
+        }
+        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, 10], true), Some(true));
+        let far = COMPONENT_PLANES + 5;
+        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, far], true), None);
+        // Outside, joined through the padding round the volume.
+        assert_eq!(one_component(&vol, [0, 0, 0], [2, 2, 3], false), Some(true));
+        // Cut the column: two components, told apart where one of them is searched whole
+        // within reach, not where neither is.
+        set(&mut vol, [1, 1, 20], false);
+        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, 30], true), Some(false));
+        assert_eq!(one_component(&vol, [1, 1, 100], [1, 1, 0], true), None);
     }
 
     /// Labels of the 6-connected pieces of `side` over the grid padded by one sample (outside).

@@ -9,6 +9,7 @@ use common::{Rng, BOTH};
 use isotopo::compose::{ComposeOptions, Composition};
 use isotopo::grid::Axis;
 use isotopo::progress::NoProgress;
+use isotopo::simplify::{KeepReason, Mode};
 use isotopo::topology::{Connectivity, SurfaceOptions};
 use isotopo::volume::InMemoryVolume;
 use isotopo::{SimplifyOptions, Source};
@@ -574,14 +575,23 @@ fn a_face_joined_only_far_away_opens_the_handle_the_other_connectivity_sees() {
 }
 
 /// The same face through simplify: at tau 20 and tau inf the step opens the handle, the next
-/// pass closes it away from the face (the corner is kept), and the output is well-composed
-/// with no handle under either connectivity; at tau 0 (the step alone) the topology is kept
-/// and the face is left.
+/// pass closes it away from the face, and the output is well-composed with no handle under
+/// either connectivity. At tau 0 (the step alone) no handle may be opened; at tau 3 the
+/// opened handle is too large to close (its loops round the threads are 4 edges) and is taken
+/// back: the topology is the input's and the face is left. Fill-only opens it too (a fill at
+/// connectivity 6), but could close it only by filling round a thread's long loop, longer
+/// than 20: it is taken back too, and nothing is cut.
 #[test]
 fn simplify_closes_the_handle_the_step_opened_elsewhere() {
     let vol = threads_joined_far_away(true);
     let dims = vol.dims();
-    for tau in [0.0, 20.0, f64::INFINITY] {
+    for (tau, mode) in [
+        (0.0, Mode::Both),
+        (3.0, Mode::Both),
+        (20.0, Mode::FillOnly),
+        (20.0, Mode::Both),
+        (f64::INFINITY, Mode::Both),
+    ] {
         let opts = SimplifyOptions {
             surface: SurfaceOptions {
                 iso: 0.0,
@@ -589,33 +599,34 @@ fn simplify_closes_the_handle_the_step_opened_elsewhere() {
                 ..SurfaceOptions::default()
             },
             tau,
+            mode,
             ..SimplifyOptions::default()
         };
+        let what = format!("tau {tau}, {mode:?}");
         let mut done = isotopo::simplify(Source::from(vol.clone()), &opts, &NoProgress).unwrap();
         let after = common::mask_of(&done.edited().unwrap(), 0.0);
         let c = done.outcome.composition.as_ref().expect("on by default");
         let left = common::critical_cells(&after, dims);
         assert_eq!((c.left.faces, c.left.cubes), (left.0 as u64, left.1 as u64));
-        if tau == 0.0 {
-            assert!(c.opened.is_empty());
-            assert_eq!(left, (1, 0), "tau 0 keeps the topology");
-            assert_eq!(betti(&after, dims, Connectivity::Six), (1, 0, 0, 1));
-            continue;
-        }
-        eprintln!(
-            "tau {tau}: opened {:?}, left {left:?}, flips {:?}, removed {}",
-            c.opened,
-            c.flips,
-            done.outcome.removed.len()
-        );
-        for r in &done.outcome.removed {
-            eprintln!("  {:?} {:?}", r.operation, r.samples);
-        }
-        assert_eq!(c.opened.len(), 1, "tau {tau}");
-        assert_eq!(left, (0, 0), "tau {tau}");
         for k in [Connectivity::Six, Connectivity::TwentySix] {
             let t = betti(&after, dims, k);
-            assert_eq!((t.0, t.1, t.2), (1, 0, 0), "tau {tau}, {}", k.number());
+            let want = match (left, k) {
+                ((1, 0), Connectivity::TwentySix) => (1, 1, 0),
+                _ => (1, 0, 0),
+            };
+            assert_eq!((t.0, t.1, t.2), want, "{what}, {}", k.number());
+        }
+        assert!(done.outcome.kept.is_empty(), "{what}");
+        let fills = done.outcome.edits.iter().all(|e| e.1);
+        assert!(mode != Mode::FillOnly || fills, "{what}: a sample cut");
+        if tau < 4.0 || mode == Mode::FillOnly {
+            assert!(c.opened.is_empty(), "{what}");
+            assert!(done.outcome.removed.is_empty(), "{what}");
+            assert_eq!(left, (1, 0), "{what}: the face is left");
+        } else {
+            assert_eq!(c.opened.len(), 1, "{what}");
+            assert_eq!(done.outcome.removed.len(), 1, "{what}");
+            assert_eq!(left, (0, 0), "{what}");
         }
     }
 }
@@ -656,10 +667,51 @@ fn the_embryos_last_face_is_mended_by_a_handle_closed_elsewhere() {
             (b6.0, b6.2),
             "tau {tau}: components, cavities"
         );
+        let kept = &done.outcome.kept;
+        assert_eq!(a6.1, kept.len() as i64, "tau {tau}: handles kept");
+        assert!(
+            kept.iter().all(|k| k.reason == KeepReason::Size),
+            "tau {tau}"
+        );
+        if tau.is_infinite() {
+            assert_eq!(a6.1, 0);
+        }
+        let removed: usize = done.outcome.removed.iter().map(|r| r.handles).sum();
         assert_eq!(
-            a6.1,
-            done.outcome.kept.len() as i64,
-            "tau {tau}: handles kept"
+            removed as i64,
+            b6.1 - a6.1 + c.opened.len() as i64,
+            "tau {tau}"
         );
     }
+}
+
+/// On the embryo's crop with a tau below the opened handle's loops, the handle is taken back:
+/// no handle more than the input had, every one kept for its size.
+#[test]
+fn a_handle_opened_that_no_pass_closes_is_taken_back() {
+    let vol = common::fixture("embryo-opened-face.txt");
+    let dims = vol.dims();
+    let conn = Connectivity::Six;
+    let b6 = betti(&common::mask_of(&vol, 0.0), dims, conn);
+    let opts = SimplifyOptions {
+        surface: SurfaceOptions {
+            iso: 0.0,
+            connectivity: conn,
+            ..SurfaceOptions::default()
+        },
+        tau: 3.0,
+        ..SimplifyOptions::default()
+    };
+    let mut done = isotopo::simplify(Source::from(vol), &opts, &NoProgress).unwrap();
+    let after = common::mask_of(&done.edited().unwrap(), 0.0);
+    let a6 = betti(&after, dims, conn);
+    let kept = &done.outcome.kept;
+    assert!(a6.1 <= b6.1, "{} handles -> {}", b6.1, a6.1);
+    assert_eq!((a6.0, a6.2), (b6.0, b6.2));
+    assert_eq!(a6.1, kept.len() as i64);
+    assert!(kept.iter().all(|k| k.reason == KeepReason::Size));
+    let c = done.outcome.composition.as_ref().expect("on by default");
+    assert!(c.opened.is_empty(), "{:?}", c.opened);
+    let removed: usize = done.outcome.removed.iter().map(|r| r.handles).sum();
+    assert_eq!(removed as i64, b6.1 - a6.1);
 }

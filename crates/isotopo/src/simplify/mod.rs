@@ -481,6 +481,8 @@ struct Run<'a> {
     /// [`crate::compose::ComposeOptions::open_handles`]): no wall flips them back, so the handle
     /// is closed elsewhere and the face it went through stays mended.
     locked: FastMap<[i64; 3], ()>,
+    /// Whether the well-composed step may still open handles (not once one was taken back).
+    opening: bool,
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
@@ -509,6 +511,7 @@ impl<'a> Run<'a> {
             original: FastMap::default(),
             composition: None,
             locked: FastMap::default(),
+            opening: true,
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
@@ -520,8 +523,41 @@ impl<'a> Run<'a> {
     }
 
     /// Sweeps, closes and makes the volume well-composed, pass after pass, until a pass closes
-    /// nothing and the step flips nothing (or the pass limit).
+    /// nothing and the step flips nothing (or the pass limit). A handle the step opened that
+    /// no pass could close (its loops at least tau, every wall refused) is taken back at the
+    /// end, and the passes run again without opening any: the face it went through is left
+    /// (see [`crate::compose::ComposeOptions::open_handles`]).
     fn passes_until_done(&mut self, vol: &mut MaskVolume) -> Result<()> {
+        self.passes_while_changing(vol)?;
+        if !self.kept.is_empty() && self.take_back_opened(vol) > 0 {
+            self.opening = false;
+            self.passes_while_changing(vol)?;
+        }
+        Ok(())
+    }
+
+    /// Flips back each sample the step opened a handle with whose handle is still there (the
+    /// sample's two pieces round it are one component without it: the flip removes exactly
+    /// one handle, and no component or cavity); returns how many.
+    fn take_back_opened(&mut self, vol: &mut MaskVolume) -> usize {
+        let mut opened: Vec<[i64; 3]> = self.locked.keys().copied().collect();
+        opened.sort_unstable();
+        let mut taken = Vec::new();
+        for b in opened {
+            if crate::compose::take_back(vol, self.conn, b) {
+                self.locked.remove(&b);
+                taken.push(b);
+            }
+        }
+        if let Some((c, _)) = &mut self.composition {
+            c.opened.retain(|q| !taken.contains(q));
+        }
+        self.forget_near_samples(taken.iter().copied());
+        taken.len()
+    }
+
+    /// [`Run::passes_until_done`] without taking back.
+    fn passes_while_changing(&mut self, vol: &mut MaskVolume) -> Result<()> {
         let first = self.passes;
         while self.passes < first + MAX_PASSES {
             let from = self.removed.len();
@@ -851,9 +887,10 @@ impl<'a> Run<'a> {
     }
 
     /// Makes the volume well-composed (see [`crate::compose`]); returns how many samples it
-    /// flipped. Fill-only flips only to inside, cut-only only to outside. Where the step opens
-    /// a handle to mend a face (only when this run closes handles and `another` pass follows,
-    /// which closes it), the sample is locked.
+    /// flipped. Fill-only flips only to inside, cut-only only to outside. The step may open a
+    /// handle to mend a face when this run closes handles below a tau (not `--keep-handles`)
+    /// and `another` pass follows to close it; the sample is then locked (and taken back, to
+    /// its side in the input, if no pass closes that handle).
     fn compose(&mut self, vol: &mut MaskVolume, another: bool) -> Result<usize> {
         let only = match self.opts.mode {
             Mode::Both => None,
@@ -862,7 +899,7 @@ impl<'a> Run<'a> {
         };
         let opts = crate::compose::ComposeOptions {
             only,
-            open_handles: another && self.opts.tau > 0.0 && self.budget != Some(0),
+            open_handles: another && self.opening && self.opts.tau > 0.0 && self.budget.is_none(),
         };
         let c = crate::compose::compose(vol, self.conn, opts, self.progress)?;
         self.locked.extend(c.opened.iter().map(|&q| (q, ())));
@@ -901,6 +938,11 @@ impl<'a> Run<'a> {
                 .iter()
                 .filter(|e| composed.contains_key(&e.0))
                 .copied()
+                .collect();
+            c.opened = c
+                .opened
+                .iter()
+                .map(|&q| vol.frame.to_original_i(q))
                 .collect();
             c
         });
