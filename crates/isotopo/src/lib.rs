@@ -61,7 +61,8 @@
 //!   fractions along crossing edges; simple samples.
 //! - [`surface`]: the isosurface as a graph (vertices on cube edges), where its vertices lie,
 //!   and the searches on it.
-//! - [`compose`]: the critical configurations mended by simple flips (well-composed output).
+//! - [`compose`]: the critical configurations mended by flips that keep the topology
+//!   (well-composed output); in `simplify`, last, a handle opened through a face and closed elsewhere.
 //! - [`sweep`]: contours, ribbons and the Reeb graph: every handle located.
 //! - [`loops`]: each handle's Reeb loop and cross loop, the shortest on the whole surface.
 //! - `closure`: walls across loops, written into the volume and verified.
