@@ -1530,7 +1530,10 @@ mod tests {
         // Cut the column: two components, told apart where one of them is searched whole
         // within reach, not where neither is.
         set(&mut vol, [1, 1, 20], false);
-        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, 30], true), Some(false));
+        assert_eq!(
+            one_component(&vol, [1, 1, 0], [1, 1, 30], true),
+            Some(false)
+        );
         assert_eq!(one_component(&vol, [1, 1, 100], [1, 1, 0], true), None);
     }
 
