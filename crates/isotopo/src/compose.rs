@@ -835,15 +835,10 @@ impl Mender {
     /// ```
     fn swap_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
         let side = self.six_side();
-        if self.only.is_some() || cell.0 == CellKind::Cube {
+        if self.only.is_some() {
             return None;
         }
-        let cs = corners(vol, cell);
-        let (joined, others): (Vec<[i64; 3]>, Vec<[i64; 3]>) =
-            cs.iter().partition(|p| vol.get(p[0], p[1], p[2]) == side);
-        if joined.len() != 2 || others.len() != 2 {
-            return None;
-        }
+        let (joined, others) = face_corners(vol, cell, side)?;
         // Near first (most such faces are mended so, and the search is cheap), then far: a
         // thread of one sample that passes itself diagonally closes its loop far away.
         let path = [SWAP_REACH, FAR_SWAP_REACH]
@@ -853,7 +848,7 @@ impl Mender {
         for &b in &others {
             // b's two pieces must be a's and d's (joined elsewhere by the path): then b makes a
             // handle, and joins no two components.
-            if self.numbers(vol, b) != (2, 1) || same_piece(vol, b, side, joined[0], joined[1]) {
+            if !self.joins_the_two(vol, b, joined) {
                 continue;
             }
             toggle(vol, b);
@@ -895,18 +890,13 @@ impl Mender {
     /// ```
     fn open_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<[i64; 3]> {
         let side = self.six_side();
-        if !self.open_handles || self.only.is_some_and(|s| s != side) || cell.0 == CellKind::Cube {
+        if !self.open_handles || self.only.is_some_and(|s| s != side) {
             return None;
         }
-        let cs = corners(vol, cell);
-        let (joined, others): (Vec<[i64; 3]>, Vec<[i64; 3]>) =
-            cs.iter().partition(|p| vol.get(p[0], p[1], p[2]) == side);
-        if joined.len() != 2 || others.len() != 2 {
-            return None;
-        }
+        let (joined, others) = face_corners(vol, cell, side)?;
         let mut best: Option<([i64; 3], i64)> = None;
         for &b in &others {
-            if self.numbers(vol, b) != (2, 1) || same_piece(vol, b, side, joined[0], joined[1]) {
+            if !self.joins_the_two(vol, b, joined) {
                 continue;
             }
             let d = change(vol, &[b]);
@@ -921,13 +911,38 @@ impl Mender {
 
     /// The topological numbers of `p` as (6-connected side, other side).
     fn numbers(&self, vol: &MaskVolume, p: [i64; 3]) -> (usize, usize) {
-        let (inside, outside) = topological_numbers(vol, p, self.conn);
-        if self.six_side() {
-            (inside, outside)
-        } else {
-            (outside, inside)
-        }
+        side_numbers(vol, p, self.conn)
     }
+
+    /// Whether flipping `b` (of the other side) to the 6-connected side would join exactly the
+    /// two pieces of `ends` round it, and leave the other side one piece there.
+    fn joins_the_two(&self, vol: &MaskVolume, b: [i64; 3], ends: [[i64; 3]; 2]) -> bool {
+        self.numbers(vol, b) == (2, 1) && !same_piece(vol, b, self.six_side(), ends[0], ends[1])
+    }
+}
+
+/// The topological numbers of `p` as (6-connected side, other side).
+fn side_numbers(vol: &MaskVolume, p: [i64; 3], conn: Connectivity) -> (usize, usize) {
+    let (inside, outside) = topological_numbers(vol, p, conn);
+    if conn == Connectivity::Six {
+        (inside, outside)
+    } else {
+        (outside, inside)
+    }
+}
+
+/// A face's two corners of one side and its two of the other: its two diagonals.
+type Diagonals = ([[i64; 3]; 2], [[i64; 3]; 2]);
+
+/// A face's [`Diagonals`], those of `side` first, if it shows one diagonal; `None` for a cube.
+fn face_corners(vol: &MaskVolume, cell: Cell, side: bool) -> Option<Diagonals> {
+    if cell.0 == CellKind::Cube {
+        return None;
+    }
+    let (on, off): (Vec<[i64; 3]>, Vec<[i64; 3]>) = corners(vol, cell)
+        .into_iter()
+        .partition(|p| vol.get(p[0], p[1], p[2]) == side);
+    Some((on.try_into().ok()?, off.try_into().ok()?))
 }
 
 /// The rewrites tried, in turn (see `Mender::best_rewrite`): how many flips, and how far from
@@ -1137,12 +1152,7 @@ pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -
         return false;
     }
     toggle(vol, b);
-    let numbers = topological_numbers(vol, b, conn);
-    let numbers = if side {
-        numbers
-    } else {
-        (numbers.1, numbers.0)
-    };
+    let numbers = side_numbers(vol, b, conn);
     let faces = STEPS.map(|e| [b[0] + e[0], b[1] + e[1], b[2] + e[2]]);
     let ends = faces
         .iter()
