@@ -382,7 +382,7 @@ fn areas_typed<T: Sample>(
                 ]
                 .map(value)
             }
-            _ => corner_values(i, j, lower, upper, nx, ny, value),
+            _ => values.corners(cube.i, cube.j),
         };
         let mut pts = [[0.0f64; 3]; 12];
         let mut have = 0u16;
@@ -413,33 +413,6 @@ fn areas_typed<T: Sample>(
         }
     }
     areas
-}
-
-/// The values at the 8 corners of the cube at padded (`i`, `j`) between `lower` and `upper`
-/// (`None`: a padding plane); NaN beyond the volume.
-fn corner_values<T: Sample>(
-    i: usize,
-    j: usize,
-    lower: Option<&[T]>,
-    upper: Option<&[T]>,
-    nx: usize,
-    ny: usize,
-    value: impl Fn(T) -> f64,
-) -> [f64; 8] {
-    let mut v = [f64::NAN; 8];
-    for (c, out) in v.iter_mut().enumerate() {
-        let (x, y) = (
-            (i + (c & 1)).wrapping_sub(1),
-            (j + ((c >> 1) & 1)).wrapping_sub(1),
-        );
-        if x >= nx || y >= ny {
-            continue;
-        }
-        if let Some(p) = if c & 4 == 0 { lower } else { upper } {
-            *out = value(p[y * nx + x]);
-        }
-    }
-    v
 }
 
 /// Slices per parallel batch: enough work per thread, little memory.
