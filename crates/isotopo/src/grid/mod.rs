@@ -37,11 +37,6 @@ impl BoxCells {
             .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
     }
 
-    /// Its samples, x fastest.
-    pub(crate) fn samples(&self) -> impl Iterator<Item = [i64; 3]> + '_ {
-        (0..self.len()).map(|c| self.sample(c))
-    }
-
     /// Whether sample number `c` lies on the box's outer layer.
     pub(crate) fn on_shell(&self, c: usize) -> bool {
         let r = [

@@ -24,9 +24,9 @@ pub(crate) struct Neighbourhood {
     pub(crate) face: [bool; 26],
     /// In the 18-neighbourhood (not a corner).
     pub(crate) in18: [bool; 26],
-    /// Neighbours k, j that are 6-adjacent / 26-adjacent to each other.
-    pub(crate) adj6: [Vec<u8>; 26],
-    pub(crate) adj26: [Vec<u8>; 26],
+    /// Neighbours k, j that are 6-adjacent / 26-adjacent to each other: bit `j` of `adj6[k]`.
+    adj6: [u32; 26],
+    adj26: [u32; 26],
 }
 
 pub(crate) fn neighbourhood() -> &'static Neighbourhood {
@@ -47,16 +47,14 @@ pub(crate) fn neighbourhood() -> &'static Neighbourhood {
         let l1 = |d: [i64; 3]| d[0].abs() + d[1].abs() + d[2].abs();
         let face = std::array::from_fn(|k| l1(offsets[k]) == 1);
         let in18 = std::array::from_fn(|k| l1(offsets[k]) <= 2);
-        let adj = |six: bool| -> [Vec<u8>; 26] {
+        let adj = |six: bool| -> [u32; 26] {
             std::array::from_fn(|k| {
-                (0..26u8)
-                    .filter(|&j| {
-                        let d: [i64; 3] =
-                            std::array::from_fn(|c| offsets[k][c] - offsets[j as usize][c]);
-                        let m = d.iter().map(|x| x.abs()).max().unwrap_or(0);
-                        j as usize != k && m == 1 && (!six || l1(d) == 1)
-                    })
-                    .collect()
+                (0..26).fold(0, |bits, j| {
+                    let d: [i64; 3] = std::array::from_fn(|c| offsets[k][c] - offsets[j][c]);
+                    let m = d.iter().map(|x| x.abs()).max().unwrap_or(0);
+                    let adjacent = j != k && m == 1 && (!six || l1(d) == 1);
+                    bits | u32::from(adjacent) << j
+                })
             })
         };
         Neighbourhood {
@@ -76,38 +74,39 @@ fn components(member: &[bool; 26], six: bool) -> usize {
 }
 
 /// Walks the components counted by [`components`], calling `each(piece, k)` for every neighbour
-/// `k` (an index into the offsets) of each; returns how many there are.
+/// `k` (an index into the offsets) of each; returns how many there are. Each piece grows as a
+/// bit mask of the 26 neighbours (this runs for every flip tried).
 pub(crate) fn label_pieces(
     member: &[bool; 26],
     six: bool,
     mut each: impl FnMut(usize, usize),
 ) -> usize {
     let nb = neighbourhood();
-    let allowed = |k: usize| member[k] && (!six || nb.in18[k]);
-    let mut seen = [false; 26];
-    let mut stack = [0u8; 26];
+    let of = |pick: &dyn Fn(usize) -> bool| (0..26).fold(0u32, |m, k| m | u32::from(pick(k)) << k);
+    let allowed = of(&|k| member[k] && (!six || nb.in18[k]));
+    let mut starts = if six {
+        allowed & of(&|k| nb.face[k])
+    } else {
+        allowed
+    };
+    let adj = if six { &nb.adj6 } else { &nb.adj26 };
     let mut count = 0;
-    for start in 0..26 {
-        if seen[start] || !allowed(start) || (six && !nb.face[start]) {
-            continue;
+    while starts != 0 {
+        let mut piece = 1u32 << starts.trailing_zeros();
+        let mut frontier = piece;
+        while frontier != 0 {
+            let k = frontier.trailing_zeros() as usize;
+            frontier &= frontier - 1;
+            let new = adj[k] & allowed & !piece;
+            piece |= new;
+            frontier |= new;
         }
-        seen[start] = true;
-        stack[0] = start as u8;
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let k = stack[top] as usize;
-            each(count, k);
-            let adj = if six { &nb.adj6[k] } else { &nb.adj26[k] };
-            for &j in adj {
-                let j = j as usize;
-                if !seen[j] && allowed(j) {
-                    seen[j] = true;
-                    stack[top] = j as u8;
-                    top += 1;
-                }
-            }
+        let mut walk = piece;
+        while walk != 0 {
+            each(count, walk.trailing_zeros() as usize);
+            walk &= walk - 1;
         }
+        starts &= !piece;
         count += 1;
     }
     count
@@ -195,6 +194,8 @@ pub(crate) struct SetTest {
     cells: BoxCells,
     conn: Connectivity,
     inside: Vec<bool>,
+    /// The numbers of `cells`' samples on its outer layer.
+    shell: Vec<u32>,
     before: BoxShape,
 }
 
@@ -208,12 +209,17 @@ impl SetTest {
                 (0..3).all(|k| q[k] >= 0 && q[k] < dims[k]) && vol.get(q[0], q[1], q[2])
             })
             .collect();
-        let before = BoxShape::of(&cells, &inside, conn);
+        let shell: Vec<u32> = (0..cells.len())
+            .filter(|&c| cells.on_shell(c))
+            .map(|c| c as u32)
+            .collect();
+        let before = BoxShape::of(&cells, &shell, &inside, conn);
         SetTest {
             region: BoxCells::new(lo, hi),
             cells,
             conn,
             inside,
+            shell,
             before,
         }
     }
@@ -236,7 +242,9 @@ impl SetTest {
         let toggle = |inside: &mut Vec<bool>| index.iter().for_each(|&c| inside[c] = !inside[c]);
         toggle(&mut self.inside);
         let keeps = euler_6(&self.cells, &self.inside, six_side, lo, hi) == euler_before
-            && BoxShape::of(&self.cells, &self.inside, self.conn) == self.before;
+            && self
+                .before
+                .is_of(&self.cells, &self.shell, &self.inside, self.conn);
         toggle(&mut self.inside);
         keeps
     }
@@ -246,110 +254,179 @@ impl SetTest {
 /// samples (each shell sample of that side numbered by its piece, in order of first meeting)
 /// and how many pieces do not reach the shell. (The Euler characteristic, of the 6-connected side,
 /// is compared round the flips alone: by Alexander duality the other side's changes the same.)
-#[derive(PartialEq)]
 struct BoxShape {
     shell: [Vec<u32>; 2],
     enclosed: [usize; 2],
 }
 
 impl BoxShape {
-    fn of(cells: &BoxCells, inside: &[bool], conn: Connectivity) -> BoxShape {
-        let six_side = conn == Connectivity::Six;
-        let mut shape = BoxShape {
-            shell: [Vec::new(), Vec::new()],
-            enclosed: [0, 0],
-        };
-        for (s, side) in [true, false].into_iter().enumerate() {
-            let (pieces, piece) = label(cells, inside, side, side == six_side);
-            let mut number = vec![u32::MAX; pieces];
-            let mut reaching = 0;
-            for (c, &p) in piece.iter().enumerate() {
-                if p == u32::MAX || !cells.on_shell(c) {
-                    continue;
-                }
-                if number[p as usize] == u32::MAX {
-                    number[p as usize] = reaching;
-                    reaching += 1;
-                }
-                shape.shell[s].push(number[p as usize]);
-            }
-            shape.enclosed[s] = pieces - reaching as usize;
+    /// `shell`: the numbers of the box's samples on its outer layer, in order.
+    fn of(cells: &BoxCells, shell: &[u32], inside: &[bool], conn: Connectivity) -> BoxShape {
+        let side = |s: usize| Self::side(cells, shell, inside, conn, s);
+        let ((inside_shell, inside_enclosed), (outside_shell, outside_enclosed)) =
+            (side(0), side(1));
+        BoxShape {
+            shell: [inside_shell, outside_shell],
+            enclosed: [inside_enclosed, outside_enclosed],
         }
-        shape
+    }
+
+    /// Whether the box's shape is this one; the outside is labelled only if the inside agrees.
+    fn is_of(&self, cells: &BoxCells, shell: &[u32], inside: &[bool], conn: Connectivity) -> bool {
+        (0..2).all(|s| {
+            let (numbers, enclosed) = Self::side(cells, shell, inside, conn, s);
+            numbers == self.shell[s] && enclosed == self.enclosed[s]
+        })
+    }
+
+    /// Side `s` (0 the inside, 1 the outside): its shell samples numbered by piece, and how
+    /// many pieces do not reach the shell.
+    fn side(
+        cells: &BoxCells,
+        shell: &[u32],
+        inside: &[bool],
+        conn: Connectivity,
+        s: usize,
+    ) -> (Vec<u32>, usize) {
+        let side = s == 0;
+        let six = side == (conn == Connectivity::Six);
+        let (pieces, piece) = label(cells, inside, side, six);
+        let mut number = vec![u32::MAX; pieces];
+        let mut numbers = Vec::new();
+        let mut reaching = 0;
+        for &c in shell {
+            let p = piece[c as usize];
+            if p == u32::MAX {
+                continue;
+            }
+            if number[p as usize] == u32::MAX {
+                number[p as usize] = reaching;
+                reaching += 1;
+            }
+            numbers.push(number[p as usize]);
+        }
+        (numbers, pieces - reaching as usize)
     }
 }
 
 /// The pieces of `side` in the box (6- or 26-adjacent samples): how many, and each sample's
-/// piece (`u32::MAX` for the other side).
+/// piece (`u32::MAX` for the other side), numbered by their first sample. One scan, x fastest,
+/// joins each sample to its neighbours met before it (union-find, the lower root kept).
 fn label(cells: &BoxCells, inside: &[bool], side: bool, six: bool) -> (usize, Vec<u32>) {
-    let mut piece = vec![u32::MAX; inside.len()];
-    let mut pieces = 0u32;
-    let mut stack = Vec::new();
-    let nb = neighbourhood();
-    for start in 0..inside.len() {
-        if inside[start] != side || piece[start] != u32::MAX {
-            continue;
-        }
-        piece[start] = pieces;
-        stack.push(start);
-        while let Some(c) = stack.pop() {
-            let q = cells.sample(c);
-            for (k, d) in nb.offsets.iter().enumerate() {
-                if six && !nb.face[k] {
-                    continue;
+    let size = cells.size.map(|n| n as i64);
+    let earlier: Vec<[i64; 3]> = neighbourhood()
+        .offsets
+        .into_iter()
+        .filter(|d| (d[2], d[1], d[0]) < (0, 0, 0))
+        .filter(|d| !six || d.iter().map(|c| c.abs()).sum::<i64>() == 1)
+        .collect();
+    let step: Vec<usize> = earlier
+        .iter()
+        .map(|d| (-((d[2] * size[1] + d[1]) * size[0] + d[0])) as usize)
+        .collect();
+    let mut root = vec![u32::MAX; inside.len()];
+    let mut c = 0;
+    for z in 0..size[2] {
+        for y in 0..size[1] {
+            for x in 0..size[0] {
+                if inside[c] == side {
+                    root[c] = c as u32;
+                    // Away from the box's faces every earlier neighbour is in it (+1 steps
+                    // come with a -1 step along a slower axis).
+                    let interior = z >= 1 && y >= 1 && y + 1 < size[1] && x >= 1 && x + 1 < size[0];
+                    for (d, &back) in earlier.iter().zip(&step) {
+                        let within = |v: i64, s: i64| (0..s).contains(&v);
+                        if interior
+                            || within(x + d[0], size[0])
+                                && within(y + d[1], size[1])
+                                && within(z + d[2], size[2])
+                        {
+                            let n = c - back;
+                            if inside[n] == side && root[n] != root[c] {
+                                join(&mut root, c, n);
+                            }
+                        }
+                    }
                 }
-                let Some(n) = cells.index([q[0] + d[0], q[1] + d[1], q[2] + d[2]]) else {
-                    continue;
-                };
-                if inside[n] == side && piece[n] == u32::MAX {
-                    piece[n] = pieces;
-                    stack.push(n);
-                }
+                c += 1;
             }
         }
-        pieces += 1;
+    }
+    let mut piece = vec![u32::MAX; inside.len()];
+    let mut pieces = 0;
+    for c in 0..inside.len() {
+        if root[c] != u32::MAX {
+            let r = find(&mut root, c);
+            // The root is the piece's first sample, numbered already unless it is this one.
+            piece[c] = if r == c { pieces } else { piece[r] };
+            pieces += u32::from(r == c);
+        }
     }
     (pieces as usize, piece)
+}
+
+/// The root of `c`'s set (halving the path on the way).
+fn find(root: &mut [u32], mut c: usize) -> usize {
+    while root[c] as usize != c {
+        let up = root[root[c] as usize];
+        root[c] = up;
+        c = up as usize;
+    }
+    c
+}
+
+/// Joins the sets of `a` and `b` under the lower root.
+fn join(root: &mut [u32], a: usize, b: usize) {
+    let (ra, rb) = (find(root, a), find(root, b));
+    let (lo, hi) = (ra.min(rb), ra.max(rb));
+    root[hi] = lo as u32;
 }
 
 /// Euler characteristic of the cubical complex of `side` counted over the cells whose lowest
 /// corner lies in `lo ..= hi`: its samples, minus the unit edges, plus the unit squares, minus
 /// the unit cubes whose corners are all of `side` (samples beyond the box are not).
 fn euler_6(cells: &BoxCells, inside: &[bool], side: bool, lo: [i64; 3], hi: [i64; 3]) -> i64 {
-    // Each cell counted at its lowest corner, by the other corners it needs.
-    const EDGES: [&[[i64; 3]]; 3] = [&[[1, 0, 0]], &[[0, 1, 0]], &[[0, 0, 1]]];
-    const SQUARES: [&[[i64; 3]]; 3] = [
-        &[[1, 0, 0], [0, 1, 0], [1, 1, 0]],
-        &[[1, 0, 0], [0, 0, 1], [1, 0, 1]],
-        &[[0, 1, 0], [0, 0, 1], [0, 1, 1]],
-    ];
-    const CUBE: &[[i64; 3]] = &[
-        [1, 0, 0],
-        [0, 1, 0],
-        [1, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [0, 1, 1],
-        [1, 1, 1],
-    ];
+    let of_side = |q: [i64; 3]| cells.index(q).is_some_and(|c| inside[c] == side);
+    let [nx, ny, _] = cells.size;
+    let corner_step: [usize; 8] =
+        std::array::from_fn(|k| (k & 1) + (k >> 1 & 1) * nx + (k >> 2) * nx * ny);
     let mut euler = 0;
-    for q in BoxCells::new(lo, hi).samples() {
-        if cells.index(q).is_none_or(|c| inside[c] != side) {
-            continue;
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                let Some(c) = cells.index([x, y, z]).filter(|&c| inside[c] == side) else {
+                    continue;
+                };
+                let bits = if cells.index([x + 1, y + 1, z + 1]).is_some() {
+                    (0..8).fold(0u8, |bits, k| {
+                        bits | u8::from(inside[c + corner_step[k]] == side) << k
+                    })
+                } else {
+                    (0..8).fold(0u8, |bits, k| {
+                        let d = [k & 1, k >> 1 & 1, k >> 2 & 1];
+                        bits | u8::from(of_side([x + d[0], y + d[1], z + d[2]])) << k
+                    })
+                };
+                euler += euler_at_corner()[bits as usize];
+            }
         }
-        let all = |others: &[[i64; 3]]| {
-            others.iter().all(|d| {
-                cells
-                    .index([q[0] + d[0], q[1] + d[1], q[2] + d[2]])
-                    .is_some_and(|n| inside[n] == side)
-            })
-        };
-        euler += 1;
-        euler -= EDGES.iter().filter(|e| all(e)).count() as i64;
-        euler += SQUARES.iter().filter(|f| all(f)).count() as i64;
-        euler -= i64::from(all(CUBE));
     }
     euler
+}
+
+/// What the cells counted at a sample of the side add to the Euler characteristic, by the cube
+/// above it (bit `k` = corner `x + 2y + 4z` of the side; corner 0, the sample, always is):
+/// itself, minus its edges along +x, +y, +z, plus its three squares, minus the cube.
+fn euler_at_corner() -> &'static [i64; 256] {
+    static TABLE: std::sync::OnceLock<[i64; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|bits| {
+            let all = |corners: &[usize]| i64::from(corners.iter().all(|&k| bits >> k & 1 == 1));
+            let edges = all(&[0, 1]) + all(&[0, 2]) + all(&[0, 4]);
+            let squares = all(&[0, 1, 2, 3]) + all(&[0, 1, 4, 5]) + all(&[0, 2, 4, 6]);
+            1 - edges + squares - all(&[0, 1, 2, 3, 4, 5, 6, 7])
+        })
+    })
 }
 
 #[cfg(test)]
