@@ -268,9 +268,9 @@ pub struct SliceCache {
     /// The latest intra-ribbon `P` and `Q1` of [`find`] with no limit when only the size
     /// matters (see `first_loop`).
     ribbon_start: Option<(Vec<Vertex>, Vec<Vertex>)>,
-    /// Cuts whose race ran out of budget (see [`cross_is_smaller`]), by a hash of their
-    /// vertices.
-    undecided: FastMap<u64, ()>,
+    /// Cuts whose race went past [`RERACE_LIMIT`] (see [`cross_is_smaller`]), by a hash of
+    /// their vertices.
+    raced: FastMap<u64, Raced>,
     /// The cheap loops crossing cuts once (see [`cheap_odd_loop`]), as vertex keys, by a hash
     /// of the cut's vertices: the sweep meets the same cut again after every wall near the
     /// long loop round its tall cycle (64³ noise at tau inf: 6,515 cheap loops looked for, of
@@ -283,9 +283,9 @@ pub struct SliceCache {
     /// [`SLICE_CACHE_BYTES`]).
     bytes: usize,
     budget: usize,
-    /// How many contour vertices, cheap-loop vertices and undecided races the cache keeps
+    /// How many contour vertices, cheap-loop vertices and long races the cache keeps
     /// before forgetting them all ([`MAX_CONTOUR_VERTICES`], [`MAX_CHEAP_VERTICES`],
-    /// [`MAX_UNDECIDED`]; fields so a test can bound them small).
+    /// [`MAX_RACED`]; fields so a test can bound them small).
     limits: CacheLimits,
 }
 
@@ -294,11 +294,11 @@ pub struct SliceCache {
 struct CacheLimits {
     contour_vertices: usize,
     cheap_vertices: usize,
-    undecided: usize,
+    raced: usize,
 }
 
-/// Undecided races a cache remembers (forgotten all at once beyond).
-const MAX_UNDECIDED: usize = 1 << 12;
+/// Long races a cache remembers (forgotten all at once beyond).
+const MAX_RACED: usize = 1 << 12;
 
 /// Vertices of the cheap loops a cache keeps (8 MiB; forgotten all at once beyond).
 const MAX_CHEAP_VERTICES: usize = 1 << 20;
@@ -330,7 +330,7 @@ impl SliceCache {
             contour_vertices: 0,
             mini_rows: MiniRows::default(),
             ribbon_start: None,
-            undecided: FastMap::default(),
+            raced: FastMap::default(),
             cheap: FastMap::default(),
             cheap_vertices: 0,
             clock: 0,
@@ -339,7 +339,7 @@ impl SliceCache {
             limits: CacheLimits {
                 contour_vertices: MAX_CONTOUR_VERTICES,
                 cheap_vertices: MAX_CHEAP_VERTICES,
-                undecided: MAX_UNDECIDED,
+                raced: MAX_RACED,
             },
         }
     }
@@ -963,17 +963,26 @@ fn find(
     let len = |lp: &[Vertex]| searcher.length(&frame, lp);
     // What the race already searched is not searched again.
     let (mut searched, mut cheap) = (None, None);
-    if limits.size_only && top_level {
+    let raced = limits.size_only && top_level;
+    if raced {
         match cross_is_smaller(top, cache, h, searcher, &p, limits) {
             Race::Cross(found) => return found,
             Race::Reeb { search, first } => (searched, cheap) = (Some(search), first),
-            Race::Undecided => {}
+            Race::Undecided { .. } => {}
         }
     }
     let (first, kept) = match searched {
         Some(search) => (search, false),
         None => first_loop(top, cache, searcher, &p, top_level, limits),
     };
+    if let Some(q1) = first
+        .found
+        .as_ref()
+        .filter(|q| raced && len(q) > RERACE_LIMIT)
+    {
+        // The cut's next race walks this Reeb loop (see `cross_is_smaller`).
+        cache.keep_cheap(cut_key(&p), q1);
+    }
     // A Q1 kept from the handle before (see `first_loop`) is refined from, like a cheap Q2.
     let refine = limits.below.is_infinite() && (first.exact || kept);
     let mut exact = first.exact;
@@ -1132,11 +1141,16 @@ fn second_loop(
 /// curve), not from `first`: `first` may go round other handles too, and then the loops crossing
 /// it once are longer than the handle's cross loop.
 ///
-/// A race that runs out of budget is not run again for the same cut: such a handle is large,
-/// and the sweep may find it again and again, after each wall a measurement of it led to
-/// elsewhere (its shortest Reeb loop runs above the sweep, where a noise handle not found yet
-/// crosses it, and that one is closed). On the embryo at tau inf one cycle's handle was measured
-/// 18 times in a row, and its race (up to limit 256) was 1.1 s of each 1.7 s measurement.
+/// Such a handle is large, and the sweep may find it again and again, after each wall a
+/// measurement of it led to elsewhere: its Reeb loop runs above the sweep, where a noise handle
+/// not found yet crosses it, and that one is closed. So a cut whose race went past
+/// [`RERACE_LIMIT`] is raced again only that far, from the Reeb loop its measurement found
+/// (kept as the cut's cheap loop), which the next such noise handle crosses; past that, a race
+/// that had run out of budget is not run again (the exact search follows), one that had
+/// decided is run whole. On the embryo at tau inf a 192-vertex cut was met 42 times, and its
+/// exact search round the cycle (after a race that ran out of budget at limit 256) cost
+/// 0.4-1.7 s each time: 34 s of the run's 47 s of loop searches; a 40-node cycle's race
+/// decided at limit 128 each time, 0.2-0.7 s.
 fn cross_is_smaller(
     top: &mut Graph,
     cache: &mut SliceCache,
@@ -1146,18 +1160,65 @@ fn cross_is_smaller(
     limits: Limits,
 ) -> Race {
     let key = cut_key(p);
-    if cache.undecided.contains_key(&key) {
-        return Race::Undecided;
-    }
-    let race = race(top, cache, h, searcher, p, limits);
-    if matches!(race, Race::Undecided) {
-        if cache.undecided.len() >= cache.limits.undecided {
-            cache.undecided.clear();
+    if let Some(before) = cache.raced.get(&key).copied() {
+        let cap = before.reached.min(RERACE_LIMIT).min(limits.below);
+        if cap >= RACE_START {
+            let capped = Limits {
+                below: cap,
+                ..limits
+            };
+            match race(top, cache, h, searcher, p, capped) {
+                Race::Cross(found) => return Race::Cross(found),
+                Race::Reeb { search, first } if search.found.is_some() => {
+                    return Race::Reeb { search, first }
+                }
+                _ => {}
+            }
         }
-        cache.undecided.insert(key, ());
+        if before.undecided {
+            return Race::Undecided {
+                reached: before.reached,
+            };
+        }
     }
-    race
+    let decided = race(top, cache, h, searcher, p, limits);
+    let went_past = match &decided {
+        Race::Undecided { reached } => Some(Raced {
+            reached: *reached,
+            undecided: true,
+        }),
+        Race::Reeb { search, .. } => search
+            .found
+            .as_ref()
+            .filter(|q| searcher.length(&top.vol.frame, q) > RERACE_LIMIT)
+            .map(|_| Raced {
+                reached: RERACE_LIMIT,
+                undecided: false,
+            }),
+        Race::Cross(_) => None,
+    };
+    if let Some(raced) = went_past {
+        if cache.raced.len() >= cache.limits.raced {
+            cache.raced.clear();
+        }
+        cache.raced.insert(key, raced);
+    }
+    decided
 }
+
+/// How a cut's race went, when it went past [`RERACE_LIMIT`].
+#[derive(Clone, Copy)]
+struct Raced {
+    /// Neither loop was shorter than this.
+    reached: f64,
+    /// The budgets ran out.
+    undecided: bool,
+}
+
+/// How far a cut's race runs again after it ran out of budget (see [`cross_is_smaller`]): the
+/// noise handles that cross a tall cycle's Reeb loop are a few edges long, and beyond them the
+/// exact search from the cut is made anyway.
+const RERACE_LIMIT: f64 = 2.0 * RACE_START;
 
 /// A hash of a cut's vertices, in order.
 fn cut_key(p: &[Vertex]) -> u64 {
@@ -1181,10 +1242,12 @@ fn race(
     // noise, whose loop crossing `p` is shorter than the first limit.
     let mut first = None;
     let mut limit = RACE_START.min(limits.below);
+    // Neither loop is shorter than this (both searches were exact below it).
+    let mut reached = 0.0;
     loop {
         let r = searcher.odd_loop(top, p, limit);
         if !r.exact {
-            return Race::Undecided;
+            return Race::Undecided { reached };
         }
         if r.found.is_some() {
             return Race::Reeb { search: r, first };
@@ -1193,7 +1256,7 @@ fn race(
             first = cheap_odd_loop(top, cache, h, p);
         }
         let Some(first) = &first else {
-            return Race::Undecided;
+            return Race::Undecided { reached: 0.0 };
         };
         let c = searcher.odd_loop(top, first, limit);
         if let Some(c) = c.found {
@@ -1206,7 +1269,7 @@ fn race(
             });
         }
         if !c.exact {
-            return Race::Undecided;
+            return Race::Undecided { reached };
         }
         if limit >= limits.below {
             // Neither loop is shorter than the limit: `r` is the search `find` would make.
@@ -1215,6 +1278,7 @@ fn race(
                 first: Some(first.clone()),
             };
         }
+        reached = limit;
         limit = (limit * 2.0).min(limits.below);
     }
 }
@@ -1230,8 +1294,9 @@ enum Race {
         search: OddLoop,
         first: Option<Vec<Vertex>>,
     },
-    /// The budgets ran out first.
-    Undecided,
+    /// The budgets ran out first, at the limit after `reached` (no loop crossing `p` or the
+    /// cheap loop once is shorter than `reached`; 0 when there was no cheap loop).
+    Undecided { reached: f64 },
 }
 
 /// The first limit of [`cross_is_smaller`]'s race (edges or millimetres): a noise handle's
@@ -1822,11 +1887,10 @@ mod tests {
         assert_eq!(both_sides, 2);
     }
 
-    /// The key of the races that ended undecided tells cuts apart: random cuts (3 to 40
-    /// vertices of a 16³ grid) with their reverses, 20,000 distinct ones in all, have 20,000
-    /// distinct keys; so do a cut and its near twins, each with one vertex moved one step along
-    /// one axis (a cut found again after a wall nearby). A collision would skip the race of a
-    /// cut never measured.
+    /// The key of the races kept tells cuts apart: random cuts (3 to 40 vertices of a 16³
+    /// grid) with their reverses, 20,000 distinct ones in all, have 20,000 distinct keys; so do
+    /// a cut and its near twins, each with one vertex moved one step along one axis (a cut found
+    /// again after a wall nearby). A collision would cut short the race of a cut never measured.
     #[test]
     fn cut_keys_tell_cuts_apart() {
         let mut rng = Rng(0xd1b5_4a32_d192_ed03);

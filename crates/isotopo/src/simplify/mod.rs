@@ -683,6 +683,11 @@ impl<'a> Run<'a> {
         let (conn, affine, limits) = (self.conn, self.affine, self.limits);
         let measured = caches.measure(vol, new, conn, affine, limits, &mut self.lasting);
         self.seconds.loops += t.elapsed().as_secs_f64();
+        self.progress.trace(format_args!(
+            "measuring {} handles at slice {s} took {:.6} s",
+            new.len(),
+            t.elapsed().as_secs_f64()
+        ));
         for (h, l) in new.iter().zip(&measured) {
             self.progress.trace(format_args!(
                 "measured {:?} at slice {s}: reeb {:?} cross {:?}, cycle of {} nodes",
