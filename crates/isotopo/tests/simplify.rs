@@ -16,6 +16,7 @@ use common::oracle::betti;
 use common::systole::systole;
 use common::{shapes, Rng, BOTH};
 use isotopo::grid::{Axis, MaskVolume};
+use isotopo::loops::Metric;
 use isotopo::progress::NoProgress;
 use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
 use isotopo::topology::{Connectivity, SurfaceOptions};
@@ -396,6 +397,56 @@ fn linked_tori_cannot_be_unlinked_by_filling() {
             &options(f64::INFINITY, Mode::CutOnly, conn),
         ));
         assert!(out.kept.is_empty());
+    }
+}
+
+/// Sizes in millimetres, as reported: with tau in millimetres, the torus's handle is kept at
+/// a size no shorter than tau and than its loop round the tube, 2πr (the interpolated
+/// surface's chords cut the circle by 0.2% at most, `tests/loops.rs`; beyond tau the loops
+/// need not be the shortest), and the bar through its hole is removed at a size below tau, no
+/// longer than the loop that closed it (one of its two loops).
+#[test]
+fn sizes_in_millimetres_are_the_loops_lengths() {
+    let (n, big, small) = (32, 10.0, 3.5);
+    let c = (n as f64 - 1.0) / 2.0;
+    let vol = InMemoryVolume::from_fn([n, n, 16], |x, y, z| {
+        let p = [x as f64 - c, y as f64 - c, z as f64 - 7.5];
+        let bar = y == 16 && (z == 7 || z == 8) && (x as f64 - c).abs() < 8.0;
+        if bar {
+            1.0
+        } else {
+            shapes::torus_field(p, big, small) as f32
+        }
+    });
+    let tube = std::f64::consts::TAU * small;
+    for conn in BOTH {
+        let opts = SimplifyOptions {
+            metric: Metric::Millimetres,
+            ..options(12.0, Mode::Both, conn)
+        };
+        let out = expect_ok(check(
+            "torus with a bar, tau in mm",
+            &vol,
+            0.0,
+            Axis::Z,
+            &opts,
+        ));
+        let what = format!("conn {}", conn.number());
+        assert_eq!(out.kept.len(), 1, "{what}: {:?}", out.kept);
+        let kept = out.kept[0].size_mm.expect("the kept handle's size");
+        assert!(
+            kept >= 12.0 && kept >= 0.998 * tube,
+            "{what}: kept at {kept:.2} mm, 2πr {tube:.2}"
+        );
+        assert!(!out.removed.is_empty(), "{what}");
+        for r in &out.removed {
+            assert!(
+                r.size_mm < 12.0 && r.size_mm <= r.length_mm + 1e-9,
+                "{what}: removed at {} mm, its closed loop {} mm",
+                r.size_mm,
+                r.length_mm
+            );
+        }
     }
 }
 
