@@ -2533,6 +2533,34 @@ mod tests {
         );
     }
 
+    /// The slice cache keeps to its budget: a slice offered beyond it sends the least recently
+    /// used ones away (down to half the budget), never the newest; under it nothing goes.
+    #[test]
+    fn the_slice_cache_keeps_to_its_budget() {
+        let conn = Connectivity::Six;
+        let vol = sponge(24, 0x5eed_cafe);
+        let build = |s: i64| SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+        let total: usize = (0..23).map(|s| slice_bytes(&build(s))).sum();
+        let (mut tight, mut roomy) = (SliceCache::new(conn), SliceCache::new(conn));
+        tight.budget = total / 4;
+        // Room for all, though not for all twice.
+        roomy.budget = total + total / 2;
+        for s in 0..23 {
+            tight.offer(s, build(s));
+            roomy.offer(s, build(s));
+            let held: usize = tight.slices.values().map(|(sl, _)| slice_bytes(sl)).sum();
+            assert_eq!(tight.bytes, held);
+            assert!(
+                tight.bytes <= tight.budget,
+                "slice {s}: {} bytes",
+                tight.bytes
+            );
+            assert!(tight.slice(s).is_some(), "slice {s} forgotten at once");
+        }
+        assert!(tight.slices.len() < 23);
+        assert_eq!(roomy.slices.len(), 23);
+    }
+
     /// The loop chained round a top-level handle's Reeb cycle (ribbon by ribbon, then along the
     /// cut the shorter way) is found for every such handle of random sponges, is simple and
     /// crosses the cut once.
