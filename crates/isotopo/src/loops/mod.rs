@@ -1215,9 +1215,9 @@ struct Raced {
     undecided: bool,
 }
 
-/// How far a cut's race runs again after it ran out of budget (see [`cross_is_smaller`]): the
-/// noise handles that cross a tall cycle's Reeb loop are a few edges long, and beyond them the
-/// exact search from the cut is made anyway.
+/// How far a cut's race runs again once a race of it went past this limit (see
+/// [`cross_is_smaller`]): the noise handles that cross a tall cycle's Reeb loop are a few edges
+/// long; beyond them the exact search or the whole race follows anyway.
 const RERACE_LIMIT: f64 = 2.0 * RACE_START;
 
 /// A hash of a cut's vertices, in order.

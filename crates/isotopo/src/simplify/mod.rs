@@ -682,11 +682,11 @@ impl<'a> Run<'a> {
         let t = std::time::Instant::now();
         let (conn, affine, limits) = (self.conn, self.affine, self.limits);
         let measured = caches.measure(vol, new, conn, affine, limits, &mut self.lasting);
-        self.seconds.loops += t.elapsed().as_secs_f64();
+        let took = t.elapsed().as_secs_f64();
+        self.seconds.loops += took;
         self.progress.trace(format_args!(
-            "measuring {} handles at slice {s} took {:.6} s",
-            new.len(),
-            t.elapsed().as_secs_f64()
+            "measuring {} handles at slice {s} took {took:.6} s",
+            new.len()
         ));
         for (h, l) in new.iter().zip(&measured) {
             self.progress.trace(format_args!(
