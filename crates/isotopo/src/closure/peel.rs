@@ -421,14 +421,23 @@ mod tests {
     /// Peels the slab x = 6 across the ring's bar towards its centre, for the loop `pts`,
     /// searching rings in the whole volume; the volume must be left as it was.
     fn peel_bar(vol: &mut MaskVolume, pts: &[[f64; 3]]) -> Vec<Vec<[i64; 3]>> {
+        peel_slab(vol, pts, 6..=6)
+    }
+
+    /// [`peel_bar`] with the slab `xs` thick.
+    fn peel_slab(
+        vol: &mut MaskVolume,
+        pts: &[[f64; 3]],
+        xs: std::ops::RangeInclusive<i64>,
+    ) -> Vec<Vec<[i64; 3]>> {
         let all = |vol: &MaskVolume| -> Vec<bool> {
             (0..14 * 14 * 7)
                 .map(|i| vol.get(i % 14, i / 14 % 14, i / 196))
                 .collect()
         };
         let before = all(vol);
-        let region: Vec<[i64; 3]> = (0..6)
-            .flat_map(|y| (1..6).map(move |z| [6, y, z]))
+        let region: Vec<[i64; 3]> = xs
+            .flat_map(|x| (0..6).flat_map(move |y| (1..6).map(move |z| [x, y, z])))
             .collect();
         let target = PeelTarget {
             loop_points: pts,
@@ -462,6 +471,18 @@ mod tests {
         let (mut open, pts) = ring_and_loop(false);
         let walls = peel_bar(&mut open, &pts);
         assert!(walls.is_empty(), "{walls:?}");
+    }
+
+    /// Peeled three samples thick, the bar is thinned to a thread and cut at its centre; every
+    /// peeled sample that can go back without joining the two sides goes back: the wall is
+    /// one section of the bar, the middle one (9 samples, not the 27 of the slab).
+    #[test]
+    fn a_peeled_wall_keeps_only_what_the_cut_needs() {
+        let (mut vol, pts) = ring_and_loop(true);
+        let walls = peel_slab(&mut vol, &pts, 5..=7);
+        let wall = walls.first().expect("a cut");
+        assert_eq!(wall.len(), 9, "{wall:?}");
+        assert!(wall.iter().all(|q| q[0] == 6), "{wall:?}");
     }
 
     /// A loop that does not go round the bar (beside it) links no ring: no wall.

@@ -465,6 +465,8 @@ struct Run<'a> {
     certified: Option<bool>,
     /// Passes started so far.
     passes: usize,
+    /// How many passes may run in a row ([`MAX_PASSES`]; a test lowers it to reach the limit).
+    max_passes: usize,
     removed: Vec<Removed>,
     /// The samples each wall of `removed` flipped, in local coordinates.
     wall_samples: Vec<Vec<[i64; 3]>>,
@@ -504,6 +506,7 @@ impl<'a> Run<'a> {
             certifying: opts.tau.is_finite() && opts.mode == Mode::Both && opts.max_ratio.is_none(),
             certified: None,
             passes: 0,
+            max_passes: MAX_PASSES,
             removed: Vec::new(),
             wall_samples: Vec::new(),
             kept: Vec::new(),
@@ -559,14 +562,14 @@ impl<'a> Run<'a> {
     /// [`Run::passes_until_done`] without taking back.
     fn passes_while_changing(&mut self, vol: &mut MaskVolume) -> Result<()> {
         let first = self.passes;
-        while self.passes < first + MAX_PASSES {
+        while self.passes < first + self.max_passes {
             let from = self.removed.len();
             let closed = self.sweep_pass(vol)?;
             self.trim_walls(vol, from);
             // Well-composed after every pass that changed something, so that the last pass (the
             // one that closes nothing) analyses and certifies the volume as it is written. A
             // handle opened needs a pass after it to be closed.
-            let another = self.passes < first + MAX_PASSES;
+            let another = self.passes < first + self.max_passes;
             let flipped = if self.opts.well_composed {
                 self.compose(vol, another)?
             } else {
@@ -1024,6 +1027,49 @@ mod tests {
             assert!(tau > size && tau < size + 1e-9, "{remove}: {tau}");
         }
         assert_eq!(keep_handles_tau(&hs, Metric::Edges, 4), f64::INFINITY);
+    }
+
+    /// A thin torus (its handle below tau) and a thick one (above) in one volume.
+    fn two_tori() -> MaskVolume {
+        let mut vol = MaskVolume::new([44, 24, 12], crate::grid::Frame::identity());
+        for (x, y, z) in (0..44 * 24 * 12).map(|k| (k % 44, k / 44 % 24, k / (44 * 24))) {
+            let torus = |cx: f64, big: f64, small: f64| {
+                let (dx, dy, dz) = (x as f64 - cx, y as f64 - 11.5, z as f64 - 5.5);
+                ((dx * dx + dy * dy).sqrt() - big).hypot(dz) < small
+            };
+            vol.set(x, y, z, torus(8.5, 4.0, 1.6) || torus(30.5, 9.0, 3.4));
+        }
+        vol
+    }
+
+    /// The pass limit: passes stop at it, even though the last closed something, and the
+    /// result is then not certified; one pass more and the pass closing nothing certifies the
+    /// same volume.
+    #[test]
+    fn passes_stop_at_the_limit_uncertified() {
+        let opts = SimplifyOptions {
+            tau: 20.0,
+            ..SimplifyOptions::default()
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let run_with = |max_passes| {
+            let mut vol = two_tori();
+            let mut run = Run::new(&opts, &affine, &crate::progress::NoProgress);
+            run.max_passes = max_passes;
+            run.passes_until_done(&mut vol).unwrap();
+            let kept: Vec<KeepReason> = run.kept.iter().map(|(_, k)| k.reason).collect();
+            let bits: Vec<bool> = (0..44 * 24 * 12)
+                .map(|k| vol.get(k % 44, k / 44 % 24, k / (44 * 24)))
+                .collect();
+            (run.passes, run.certified, run.removed.len(), kept, bits)
+        };
+        let (passes, certified, removed, kept, limited) = run_with(1);
+        assert_eq!((passes, certified, removed), (1, Some(false), 1));
+        assert_eq!(kept, [KeepReason::Size]);
+        let (passes, certified, removed, kept, done) = run_with(2);
+        assert_eq!((passes, certified, removed), (2, Some(true), 1));
+        assert_eq!(kept, [KeepReason::Size]);
+        assert!(limited == done, "the second pass changed nothing");
     }
 
     /// After the last allowed pass closed something: a handle kept for its size that measured
