@@ -950,21 +950,38 @@ fn direct_loops(
     conn: Connectivity,
     s: i64,
 ) -> Result<Vec<Vec<Vertex>>> {
-    let table = cases(conn);
-    // The ribbon's pieces and crossing points, from its slice's surfels.
     let sl = SliceSurfels::build(
         shared.plane(un.slice),
         shared.plane(un.slice + 1),
         un.slice as i32,
         conn,
     );
+    let (verts, region) = ribbon_region(&sl, conn, un.ribbon, un.slice);
+    let pairs = local::handles(graph, &verts, &region, un.genus).ok_or_else(|| {
+        Error::Internal(format!(
+            "slice {s}: no handle loops found directly in a mini-volume ribbon of genus {}",
+            un.genus
+        ))
+    })?;
+    Ok(pairs.into_iter().map(|(_, l2)| l2).collect())
+}
+
+/// The pieces of ribbon `ribbon` of the slice `sl` (between planes `slice` and `slice + 1`),
+/// and their crossing points, sorted.
+fn ribbon_region(
+    sl: &SliceSurfels,
+    conn: Connectivity,
+    ribbon: u32,
+    slice: i64,
+) -> (Vec<Vertex>, PieceSet) {
+    let table = cases(conn);
     let mut verts = Vec::new();
     let mut region = PieceSet::default();
     for cube in &sl.cubes {
         let case = &table[cube.case as usize];
-        let q = [cube.i as i64 - 1, cube.j as i64 - 1, un.slice];
+        let q = [cube.i as i64 - 1, cube.j as i64 - 1, slice];
         for k in 0..case.n_pieces as usize {
-            if sl.piece_ribbon[cube.first_piece as usize + k] != un.ribbon {
+            if sl.piece_ribbon[cube.first_piece as usize + k] != ribbon {
                 continue;
             }
             region.insert(q, k as u8);
@@ -975,13 +992,7 @@ fn direct_loops(
     }
     verts.sort();
     verts.dedup();
-    let pairs = local::handles(graph, &verts, &region, un.genus).ok_or_else(|| {
-        Error::Internal(format!(
-            "slice {s}: no handle loops found directly in a mini-volume ribbon of genus {}",
-            un.genus
-        ))
-    })?;
-    Ok(pairs.into_iter().map(|(_, l2)| l2).collect())
+    (verts, region)
 }
 
 /// The handle of a loop [`direct_loops`] found.
@@ -1107,6 +1118,87 @@ pub fn find_handles(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A ribbon is a connected piece of surface within its slice: the region a handle is looked
+    /// for in directly is exactly one class of the slice's pieces joined by shared crossing
+    /// points (found here by a union-find over every piece of every cube, not from the slice's
+    /// labels), with its crossing points; the ribbons' regions share no piece and cover all.
+    /// Random masks (cubes of two and more pieces are common), both connectivities.
+    #[test]
+    fn a_ribbons_region_is_one_connected_class_of_pieces() {
+        let mut rng = crate::test_rng::Rng(0x5851_f42d_4c95_7f2d);
+        let mut multi = 0;
+        for round in 0..24 {
+            let n = 9;
+            let mut vol = MaskVolume::new([n, n, 4], Frame::identity());
+            let dense = 25 + rng.below(50);
+            for k in 0..n * n * 4 {
+                vol.set(k % n, k / n % n, k / (n * n), rng.below(100) < dense);
+            }
+            let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
+            for z in -1..4i64 {
+                let sl = SliceSurfels::build(vol.plane(z), vol.plane(z + 1), z as i32, conn);
+                let mut pieces: Vec<(([i64; 3], u8), Vec<Vertex>)> = Vec::new();
+                for cube in &sl.cubes {
+                    let case = &cases(conn)[cube.case as usize];
+                    let q = [cube.i as i64 - 1, cube.j as i64 - 1, z];
+                    multi += (case.n_pieces > 1) as usize;
+                    for (k, piece) in case.pieces.iter().enumerate() {
+                        let mut vs: Vec<Vertex> = piece
+                            .loops
+                            .iter()
+                            .flatten()
+                            .map(|&e| vertex_of(q, e))
+                            .collect();
+                        vs.sort();
+                        vs.dedup();
+                        pieces.push(((q, k as u8), vs));
+                    }
+                }
+                let mut uf = UnionFind::new(pieces.len());
+                let mut owner: crate::surface::search::FastMap<Vertex, usize> = Default::default();
+                for (i, (_, vs)) in pieces.iter().enumerate() {
+                    for v in vs {
+                        if let Some(&j) = owner.get(v) {
+                            uf.union(i as u32, j as u32);
+                        }
+                        owner.insert(*v, i);
+                    }
+                }
+                let mut seen = vec![false; pieces.len()];
+                for r in 0..sl.ribbons.len() as u32 {
+                    let (verts, region) = ribbon_region(&sl, conn, r, z);
+                    let members: Vec<usize> = (0..pieces.len())
+                        .filter(|&i| region.0.contains_key(&pieces[i].0))
+                        .collect();
+                    assert_eq!(
+                        members.len(),
+                        region.0.len(),
+                        "round {round} z {z} ribbon {r}: a piece of no cube"
+                    );
+                    let class = uf.find(members[0] as u32);
+                    let want: Vec<usize> = (0..pieces.len())
+                        .filter(|&i| uf.find(i as u32) == class)
+                        .collect();
+                    assert_eq!(members, want, "round {round} z {z} ribbon {r}");
+                    let mut vs: Vec<Vertex> =
+                        members.iter().flat_map(|&i| pieces[i].1.clone()).collect();
+                    vs.sort();
+                    vs.dedup();
+                    assert_eq!(verts, vs, "round {round} z {z} ribbon {r}");
+                    for i in members {
+                        assert!(!seen[i], "round {round} z {z}: a piece in two ribbons");
+                        seen[i] = true;
+                    }
+                }
+                assert!(
+                    seen.iter().all(|&s| s),
+                    "round {round} z {z}: a piece in no ribbon"
+                );
+            }
+        }
+        assert!(multi > 1000, "{multi} cubes of several pieces");
+    }
 
     /// The least corner of each set of a cube's corners, in the original frame: with the
     /// identity frame, the lowest bit set; with the axes permuted (local x, y, z are original
