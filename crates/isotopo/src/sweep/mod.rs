@@ -1138,7 +1138,9 @@ mod tests {
             let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
             for z in -1..4i64 {
                 let sl = SliceSurfels::build(vol.plane(z), vol.plane(z + 1), z as i32, conn);
-                let mut pieces: Vec<(([i64; 3], u8), Vec<Vertex>)> = Vec::new();
+                // (cube, piece index), with the piece's crossing points.
+                type Piece = (([i64; 3], u8), Vec<Vertex>);
+                let mut pieces: Vec<Piece> = Vec::new();
                 for cube in &sl.cubes {
                     let case = &cases(conn)[cube.case as usize];
                     let q = [cube.i as i64 - 1, cube.j as i64 - 1, z];
