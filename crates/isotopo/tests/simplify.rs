@@ -581,6 +581,15 @@ fn max_ratio_keeps_long_skinny_handles() {
         let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
         assert_eq!(out.removed.len(), 1, "ratio {ratio}: {:?}", out.kept);
+        // At a finite tau just above the short loop, the searches go up to tau × the ratio:
+        // far enough for the long loop, so the ratio is known and the handle goes.
+        let finite = SimplifyOptions {
+            tau: a.min(b) + 1.0,
+            ..opts
+        };
+        let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
+        let out = simplify(&mut m, &finite, &Affine::IDENTITY, &NoProgress).unwrap();
+        assert_eq!(out.removed.len(), 1, "tau {}: {:?}", finite.tau, out.kept);
         opts.max_ratio = Some(2.0);
         let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
         let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();

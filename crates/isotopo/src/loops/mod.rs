@@ -2615,7 +2615,8 @@ mod tests {
     /// The `Q1` kept for the next intra-ribbon handle with the same `P` (see `first_loop`) is
     /// taken again only while it still crosses `P` once: measured again on the same volume the
     /// handle gets the same loops, and on a volume where the kept `Q1` was broken (its samples
-    /// flipped) it is not taken, and the handle gets the same loops as with no kept `Q1`.
+    /// flipped) it is not taken, and the handle gets the same loops as with no kept `Q1`. Nor is
+    /// it taken for a top-level cut, or under a limit.
     #[test]
     fn a_kept_first_loop_is_taken_again_only_while_it_still_crosses_p() {
         let limits = Limits {
@@ -2657,6 +2658,19 @@ mod tests {
                 let mut g = Graph::new(&vol, cases(conn));
                 let (_, taken) = first_loop(&mut g, &mut cache, &searcher, &cut, false, limits);
                 assert!(taken, "the kept Q1 still crosses P once");
+                // A top-level cut, or a limit (the loops must then be the shortest): never.
+                let finite = Limits {
+                    below: 1e9,
+                    ..limits
+                };
+                let exact = Limits {
+                    size_only: false,
+                    ..limits
+                };
+                for (top_level, l) in [(true, limits), (false, finite), (false, exact)] {
+                    let (_, taken) = first_loop(&mut g, &mut cache, &searcher, &cut, top_level, l);
+                    assert!(!taken, "taken at top level {top_level} under {l:?}");
+                }
                 let again = measure(&mut g, &mut cache, h, conn, &affine, limits);
                 assert_eq!(loops(&again), loops(&fresh));
                 kept += 1;
