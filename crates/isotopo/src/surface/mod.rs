@@ -91,9 +91,12 @@ pub const MAX_DEGREE: usize = 12;
 /// piece is which of those cubes, which piece, which tube triangle.
 #[derive(Clone, Copy, Debug)]
 pub struct Around {
-    center: Vertex,
+    /// The crossing point's edge, lower end (volumes have fewer than 2^31 samples a side: 40
+    /// bytes in all, where a search's time goes mostly to fetching these from memory).
+    at: [i32; 3],
+    axis: u8,
     /// Number of neighbours (4, or more on a tube).
-    pub n: usize,
+    n: u8,
     nbr: [u8; MAX_DEGREE],
     piece: [u8; MAX_DEGREE],
     /// Bit k: the edge to neighbour k is a diagonal through a tube, not a segment on a face.
@@ -110,13 +113,36 @@ fn other_axes(axis: u8) -> (usize, usize) {
     }
 }
 
+// Two to a cache line and a bit: the searches' working set.
+const _: () = assert!(std::mem::size_of::<Around>() == 40);
+
 impl Around {
+    /// Number of neighbours (4, or more on a tube).
+    #[inline]
+    pub fn n(&self) -> usize {
+        self.n as usize
+    }
+
+    /// No neighbours: the vertex is gone from the surface.
+    pub fn clear(&mut self) {
+        self.n = 0;
+    }
+
+    /// The crossing point itself.
+    #[inline]
+    pub fn center(&self) -> Vertex {
+        Vertex {
+            p: self.at.map(i64::from),
+            axis: self.axis,
+        }
+    }
+
     /// Neighbour `k`, clockwise seen from outside.
     #[inline]
     pub fn nbr(&self, k: usize) -> Vertex {
         let c = self.nbr[k];
         let (d, axis) = (c / 3, c % 3);
-        let mut p = self.center.p;
+        let mut p = self.center().p;
         p[0] += (d % 3) as i64 - 1;
         p[1] += (d / 3 % 3) as i64 - 1;
         p[2] += (d / 9) as i64 - 1;
@@ -139,15 +165,15 @@ impl Around {
 
     /// The vertices joined to this one, in order round it.
     pub fn neighbours(&self) -> Vec<Vertex> {
-        (0..self.n).map(|k| self.nbr(k)).collect()
+        (0..self.n()).map(|k| self.nbr(k)).collect()
     }
 
     /// The piece between neighbours `k` and `k + 1`.
     #[inline]
     pub fn piece(&self, k: usize) -> PieceRef {
         let code = self.piece[k];
-        let (lo, hi) = other_axes(self.center.axis);
-        let mut cube = self.center.p;
+        let (lo, hi) = other_axes(self.axis);
+        let mut cube = self.center().p;
         cube[lo] -= (code & 1) as i64;
         cube[hi] -= ((code >> 1) & 1) as i64;
         PieceRef {
@@ -160,7 +186,8 @@ impl Around {
     /// The pieces on either side of the edge to neighbour `k`.
     #[inline]
     pub fn sides(&self, k: usize) -> (PieceRef, PieceRef) {
-        (self.piece((k + self.n - 1) % self.n), self.piece(k))
+        let n = self.n();
+        (self.piece((k + n - 1) % n), self.piece(k))
     }
 
     /// Is the edge to neighbour `k` a diagonal through a tube?
@@ -171,18 +198,19 @@ impl Around {
 
     /// Where `w` lies among the neighbours.
     pub fn position(&self, w: Vertex) -> Option<usize> {
-        let c = Around::code(self.center, w)?;
-        self.nbr[..self.n].iter().position(|&x| x == c)
+        let c = Around::code(self.center(), w)?;
+        self.nbr[..self.n()].iter().position(|&x| x == c)
     }
 
     /// The neighbours on the left of a curve that comes in from neighbour `from` and goes on to
     /// neighbour `to` (positions): those strictly after `from`, clockwise, up to `to`, as bits.
     pub fn left_of(&self, from: usize, to: usize) -> u16 {
         let mut m = 0u16;
-        let mut k = (from + 1) % self.n;
+        let n = self.n();
+        let mut k = (from + 1) % n;
         while k != to {
             m |= 1 << k;
-            k = (k + 1) % self.n;
+            k = (k + 1) % n;
         }
         m
     }
@@ -299,8 +327,9 @@ pub fn around(vol: &MaskVolume, table: &[Case; 256], v: Vertex) -> Option<Around
     }
     // Chain: `chain[k]` runs nbr[k-1] -> v -> nbr[k], so it lies between those two.
     let mut out = Around {
-        center: v,
-        n,
+        at: v.p.map(|c| c as i32),
+        axis: v.axis,
+        n: n as u8,
         nbr: [0; MAX_DEGREE],
         piece: [0; MAX_DEGREE],
         diagonal: 0,
@@ -348,7 +377,7 @@ mod tests {
                         let Some(a) = around(&vol, t, v) else {
                             continue;
                         };
-                        for k in 0..a.n {
+                        for k in 0..a.n() {
                             let p = a.piece(k);
                             let case = &t[cube_case(&vol, p.cube) as usize];
                             let verts: Vec<Vertex> = case.pieces[p.index as usize]
@@ -360,7 +389,7 @@ mod tests {
                             assert!(
                                 verts.contains(&v)
                                     && verts.contains(&a.nbr(k))
-                                    && verts.contains(&a.nbr((k + 1) % a.n)),
+                                    && verts.contains(&a.nbr((k + 1) % a.n())),
                                 "{v:?} piece {k}"
                             );
                         }
@@ -381,7 +410,7 @@ mod tests {
                 axis: 0,
             };
             let a = around(&vol, t, v).expect("crossing");
-            assert_eq!(a.n, 4);
+            assert_eq!(a.n(), 4);
             let mut n = a.neighbours();
             n.sort();
             n.dedup();
@@ -424,7 +453,7 @@ mod tube_tests {
                         let Some(a) = around(&vol, t, v) else {
                             continue;
                         };
-                        diagonals += (0..a.n).filter(|&k| a.diagonal(k)).count();
+                        diagonals += (0..a.n()).filter(|&k| a.diagonal(k)).count();
                         for w in a.neighbours() {
                             assert!(
                                 around(&vol, t, w).unwrap().position(v).is_some(),

@@ -61,7 +61,7 @@ pub(crate) fn generators(
             continue;
         }
         let a = g.around(root)?;
-        if !(0..a.n).any(|k| usable(region, &a, k)) {
+        if !(0..a.n()).any(|k| usable(region, &a, k)) {
             continue;
         }
         tree.insert(kr, (0, u64::MAX));
@@ -70,7 +70,7 @@ pub(crate) fn generators(
         while let Some(v) = queue.pop_front() {
             let a = g.around(v)?;
             let (kv, d) = (key(v), tree[&key(v)].0);
-            for k in 0..a.n {
+            for k in 0..a.n() {
                 if !usable(region, &a, k) {
                     continue;
                 }

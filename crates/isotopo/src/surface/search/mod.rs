@@ -156,7 +156,7 @@ impl GraphCache {
                                     None => {
                                         // Its number stays allocated but unreachable.
                                         self.index.insert(k, ABSENT);
-                                        self.arena[i as usize].n = 0;
+                                        self.arena[i as usize].clear();
                                     }
                                 }
                             }
@@ -368,7 +368,7 @@ impl<'a> Graph<'a> {
     #[inline]
     fn usable_mask(&mut self, region: &dyn Region, i: u32) -> u16 {
         if region.allows_all() {
-            return ((1u32 << self.arena[i as usize].n) - 1) as u16;
+            return ((1u32 << self.arena[i as usize].n()) - 1) as u16;
         }
         let sc = &mut self.scratch;
         if sc.usable_stamp.len() <= i as usize {
@@ -381,7 +381,7 @@ impl<'a> Graph<'a> {
         }
         let a = &self.arena[i as usize];
         let mut m = 0u16;
-        for k in 0..a.n {
+        for k in 0..a.n() {
             if usable(region, a, k) {
                 m |= 1 << k;
             }
@@ -405,7 +405,7 @@ impl Graph<'_> {
             n: 0,
             at: 0,
         };
-        for k in 0..self.arena[i as usize].n {
+        for k in 0..self.arena[i as usize].n() {
             if (mask >> k) & 1 == 1 {
                 if let Some(w) = self.neighbour(i, k) {
                     out.k[out.n as usize] = k as u8;
@@ -1339,7 +1339,7 @@ pub(crate) fn walk_contour(g: &Graph, start: Vertex, w: i64) -> Option<Vec<Verte
     loop {
         let a = crate::surface::around(g.vol, g.table, cur)?;
         // Along segments in the plane (never a diagonal through a tube).
-        let next = (0..a.n)
+        let next = (0..a.n())
             .filter(|&k| !a.diagonal(k))
             .map(|k| a.nbr(k))
             .find(|x| in_plane(x) && *x != prev)?;
