@@ -424,6 +424,46 @@ fn keep_handles_leaves_exactly_that_many() {
     assert_eq!(cases, 4 * 2 * 4);
 }
 
+/// `keep_handles` keeps the largest: three tori of different tubes, the largest met first by
+/// the sweep (lowest in z) and the smallest last; keeping 1 keeps the largest, keeping 2 the
+/// two largest, whatever order the sweep meets them in.
+#[test]
+fn keep_handles_keeps_the_largest() {
+    // (centre z, ring radius, tube radius), largest first along the sweep.
+    let tori = [(8.0, 9.0, 3.2), (20.0, 7.0, 2.4), (31.0, 5.0, 1.6)];
+    let vol = InMemoryVolume::from_fn([28, 28, 38], |x, y, z| {
+        let (dx, dy) = (x as f32 - 13.5, y as f32 - 13.5);
+        let ring = (dx * dx + dy * dy).sqrt();
+        tori.iter()
+            .map(|&(cz, big, small)| small - (ring - big).hypot(z as f32 - cz))
+            .fold(f32::MIN, f32::max)
+    });
+    for conn in BOTH {
+        for k in [1, 2] {
+            let opts = SimplifyOptions {
+                keep_handles: Some(k),
+                ..options(conn, 0.0)
+            };
+            let (done, _) = run(&vol, &opts);
+            // Which torus each kept handle is: the one its loops' box is centred on in z.
+            let mut which: Vec<usize> = done
+                .outcome
+                .kept
+                .iter()
+                .map(|h| {
+                    let z = (h.bbox.min[2] + h.bbox.max[2]) as f32 / 2.0;
+                    (0..3)
+                        .min_by(|&a, &b| (tori[a].0 - z).abs().total_cmp(&(tori[b].0 - z).abs()))
+                        .unwrap()
+                })
+                .collect();
+            which.sort_unstable();
+            let want: Vec<usize> = (0..k).collect();
+            assert_eq!(which, want, "{conn:?} keep {k}: {:?}", done.outcome.kept);
+        }
+    }
+}
+
 /// Out of core (a window of 8 planes, the rest in a scratch file) the parts and the handles go
 /// exactly as in memory.
 #[test]
