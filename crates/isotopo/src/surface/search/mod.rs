@@ -262,8 +262,8 @@ impl<'a> Graph<'a> {
         let visit =
             |g: &mut Graph, i: u32, queue: &mut VecDeque<u32>, pending: &mut FastMap<u32, ()>| {
                 g.scratch.ensure(g.arena.len() + 1, 0);
-                if g.scratch.stamp[i as usize] != gen {
-                    g.scratch.stamp[i as usize] = gen;
+                if g.scratch.states[i as usize].stamp != gen {
+                    g.scratch.states[i as usize].stamp = gen;
                     pending.remove(&i);
                     queue.push_back(i);
                 }
@@ -533,10 +533,9 @@ pub const EXACT_BUDGET: usize = 1 << 22;
 struct Scratch {
     generation: u32,
     mark_generation: u32,
-    stamp: Vec<u32>,
-    dist: Vec<u32>,
-    pred: Vec<u32>,
-    source: Vec<u32>,
+    /// Per state, side by side: a search that reaches a state reads or writes them all, so
+    /// one fetch from memory serves the four (they were four arrays).
+    states: Vec<State>,
     /// Per vertex: stamp of the current curves, and the marks of each curve (bit k: neighbour k
     /// is on that curve's left).
     mark_stamp: Vec<u32>,
@@ -547,6 +546,18 @@ struct Scratch {
     usable_mask: Vec<u16>,
     /// The searches in millimetres.
     mm: weighted::MmScratch,
+}
+
+/// One state's entry in [`Scratch`].
+#[derive(Clone, Copy, Default)]
+struct State {
+    /// Current when equal to the scratch's generation.
+    stamp: u32,
+    dist: u32,
+    /// The state it was reached from (`u32::MAX` for a start).
+    pred: u32,
+    /// Which start it was reached from (multi-source searches).
+    source: u32,
 }
 
 /// The next generation of `stamps` (an entry is set in this generation when it equals the
@@ -563,7 +574,12 @@ fn advance(generation: &mut u32, stamps: &mut [u32]) -> u32 {
 impl Scratch {
     /// A fresh stamp for the state arrays.
     fn next_generation(&mut self) -> u32 {
-        advance(&mut self.generation, &mut self.stamp)
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.states.iter_mut().for_each(|x| x.stamp = 0);
+            self.generation = 1;
+        }
+        self.generation
     }
 
     /// A new region: forget which edges were usable.
@@ -577,12 +593,9 @@ impl Scratch {
     }
 
     fn ensure(&mut self, states: usize, vertices: usize) {
-        if self.stamp.len() < states {
-            let n = states.next_power_of_two();
-            self.stamp.resize(n, 0);
-            self.dist.resize(n, 0);
-            self.pred.resize(n, 0);
-            self.source.resize(n, 0);
+        if self.states.len() < states {
+            self.states
+                .resize(states.next_power_of_two(), State::default());
         }
         if self.mark_stamp.len() < vertices {
             let n = vertices.next_power_of_two();
@@ -862,9 +875,9 @@ fn start_at(g: &mut Graph, bits: u32, si: u32) -> (u32, u32) {
     let gen = g.scratch.next_generation();
     g.scratch.ensure((g.arena.len() + 1) << bits, 0);
     let start = si << bits;
-    g.scratch.stamp[start as usize] = gen;
-    g.scratch.dist[start as usize] = 0;
-    g.scratch.pred[start as usize] = u32::MAX;
+    g.scratch.states[start as usize].stamp = gen;
+    g.scratch.states[start as usize].dist = 0;
+    g.scratch.states[start as usize].pred = u32::MAX;
     (gen, start)
 }
 
@@ -883,17 +896,17 @@ fn expand(
     let steps = g.steps(region, vi);
     g.scratch
         .ensure((g.arena.len() + 1) << bits, g.arena.len() + 1);
-    let d = g.scratch.dist[st as usize];
+    let d = g.scratch.states[st as usize].dist;
     let (mut out, mut n) = ([0u32; MAX_DEGREE], 0);
     for (k, wi) in steps {
         let ns = (wi << bits) | (par ^ curves.flip(g, vi, k, wi));
         let sc = &mut g.scratch;
-        if sc.stamp[ns as usize] == gen {
+        if sc.states[ns as usize].stamp == gen {
             continue;
         }
-        sc.stamp[ns as usize] = gen;
-        sc.dist[ns as usize] = d + 1;
-        sc.pred[ns as usize] = st;
+        sc.states[ns as usize].stamp = gen;
+        sc.states[ns as usize].dist = d + 1;
+        sc.states[ns as usize].pred = st;
         out[n] = ns;
         n += 1;
     }
@@ -930,7 +943,7 @@ fn odd_length_through(
     // (length, the two meeting states)
     let mut best: Option<(usize, u32, u32)> = None;
     while let Some(st) = queue.pop_front() {
-        let d = g.scratch.dist[st as usize] as usize;
+        let d = g.scratch.states[st as usize].dist as usize;
         // States found from here on are d + 1 deep: pairs they close are no shorter.
         if d + 1 > half || best.is_some_and(|b| d + 1 >= b.0) {
             break;
@@ -942,8 +955,8 @@ fn odd_length_through(
         let (reached, n) = expand(g, curves, region, st, gen);
         for &ns in &reached[..n] {
             let (sc, other) = (&g.scratch, ns ^ goal);
-            if sc.stamp[other as usize] == gen {
-                let len = d + 1 + sc.dist[other as usize] as usize;
+            if sc.states[other as usize].stamp == gen {
+                let len = d + 1 + sc.states[other as usize].dist as usize;
                 if len < below && best.is_none_or(|b| len < b.0) {
                     best = Some((len, ns, other));
                 }
@@ -982,7 +995,7 @@ fn odd_path_through(
     let mut budget = g.budgets.exact;
     'bfs: loop {
         let st = queue.pop_front()?;
-        if g.scratch.dist[st as usize] as usize >= len || budget == 0 {
+        if g.scratch.states[st as usize].dist as usize >= len || budget == 0 {
             return None;
         }
         budget -= 1;
@@ -1006,7 +1019,7 @@ fn states_to(g: &Graph, mut st: u32, bits: u32) -> Vec<Vertex> {
     let mut path = Vec::new();
     while st != u32::MAX {
         path.push(g.vertex(st >> bits));
-        st = g.scratch.pred[st as usize];
+        st = g.scratch.states[st as usize].pred;
     }
     path.reverse();
     path
@@ -1102,11 +1115,11 @@ fn multi_source(
     for (i, &vi) in nums.iter().enumerate() {
         let st = vi << 1;
         let sc = &mut g.scratch;
-        if sc.stamp[st as usize] != gen {
-            sc.stamp[st as usize] = gen;
-            sc.dist[st as usize] = 0;
-            sc.pred[st as usize] = u32::MAX;
-            sc.source[st as usize] = i as u32;
+        if sc.states[st as usize].stamp != gen {
+            sc.states[st as usize].stamp = gen;
+            sc.states[st as usize].dist = 0;
+            sc.states[st as usize].pred = u32::MAX;
+            sc.states[st as usize].source = i as u32;
             queue.push_back(st);
             seen.push(st);
         }
@@ -1115,7 +1128,10 @@ fn multi_source(
     let half = |below: usize| below.saturating_sub(1).div_ceil(2);
     let mut budget = g.budgets.first;
     while let Some(st) = queue.pop_front() {
-        let (d, src) = (g.scratch.dist[st as usize], g.scratch.source[st as usize]);
+        let (d, src) = (
+            g.scratch.states[st as usize].dist,
+            g.scratch.states[st as usize].source,
+        );
         let below = best.map_or(limit, |b| b.0.min(limit));
         if d as usize + 1 > half(below) || budget == 0 {
             break;
@@ -1124,14 +1140,14 @@ fn multi_source(
         let (reached, k) = expand(g, curves, region, st, gen);
         // Sources first: a state's partner may be among the states just reached.
         for &ns in &reached[..k] {
-            g.scratch.source[ns as usize] = src;
+            g.scratch.states[ns as usize].source = src;
         }
         for &ns in &reached[..k] {
             let sc = &g.scratch;
             let other = ns ^ 1;
-            if sc.stamp[other as usize] == gen {
-                let far = sc.source[other as usize] as usize;
-                let total = d as usize + 1 + sc.dist[other as usize] as usize;
+            if sc.states[other as usize].stamp == gen {
+                let far = sc.states[other as usize].source as usize;
+                let total = d as usize + 1 + sc.states[other as usize].dist as usize;
                 let total = total + along(src as usize, far);
                 if best.is_none_or(|b| total < b.0) {
                     best = Some((total, ns, other));
@@ -1148,9 +1164,9 @@ fn multi_source(
     let sc = &g.scratch;
     let meets = conclusive.then(|| {
         seen.iter()
-            .filter(|&&st| st & 1 == 0 && sc.stamp[(st | 1) as usize] == gen)
+            .filter(|&&st| st & 1 == 0 && sc.states[(st | 1) as usize].stamp == gen)
             .map(|&st| {
-                let sum = sc.dist[st as usize] + sc.dist[(st | 1) as usize];
+                let sum = sc.states[st as usize].dist + sc.states[(st | 1) as usize].dist;
                 (st >> 1, sum as usize)
             })
             .collect()
@@ -1166,8 +1182,8 @@ fn meeting_walk(g: &Graph, cut: &[Vertex], end: u32, other: u32) -> (Vec<Vertex>
     let n = cut.len();
     let sc = &g.scratch;
     let (a, b) = (
-        sc.source[end as usize] as usize,
-        sc.source[other as usize] as usize,
+        sc.states[end as usize].source as usize,
+        sc.states[other as usize].source as usize,
     );
     let mut walk = states_to(g, end, 1);
     let mut back = states_to(g, other, 1);
@@ -1211,8 +1227,8 @@ pub fn path_to(
     let si = g.index(from)?;
     let gen = g.scratch.next_generation();
     g.scratch.ensure(g.arena.len() + 1, 0);
-    g.scratch.stamp[si as usize] = gen;
-    g.scratch.pred[si as usize] = u32::MAX;
+    g.scratch.states[si as usize].stamp = gen;
+    g.scratch.states[si as usize].pred = u32::MAX;
     let mut queue = VecDeque::from([si]);
     let mut visited = 0;
     let end = 'bfs: loop {
@@ -1228,9 +1244,9 @@ pub fn path_to(
         g.scratch.ensure(g.arena.len() + 1, 0);
         for (_, wi) in steps {
             let sc = &mut g.scratch;
-            if sc.stamp[wi as usize] != gen {
-                sc.stamp[wi as usize] = gen;
-                sc.pred[wi as usize] = vi;
+            if sc.states[wi as usize].stamp != gen {
+                sc.states[wi as usize].stamp = gen;
+                sc.states[wi as usize].pred = vi;
                 queue.push_back(wi);
             }
         }
@@ -1239,7 +1255,7 @@ pub fn path_to(
     let mut i = end;
     while i != u32::MAX {
         path.push(g.vertex(i));
-        i = g.scratch.pred[i as usize];
+        i = g.scratch.states[i as usize].pred;
     }
     path.reverse();
     Some(path)
@@ -1307,7 +1323,7 @@ pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bo
     let gen = g.scratch.next_generation();
     g.scratch.ensure((g.arena.len() + 1) << 1, 0);
     let (start, target) = (si << 1, (si << 1) | 1);
-    g.scratch.stamp[start as usize] = gen;
+    g.scratch.states[start as usize].stamp = gen;
     let mut stack = vec![start];
     while let Some(st) = stack.pop() {
         let (vi, par) = (st >> 1, st & 1);
@@ -1319,8 +1335,8 @@ pub fn is_nonseparating(g: &mut Graph, lp: &[Vertex], region: &dyn Region) -> bo
             if ns == target {
                 return true;
             }
-            if g.scratch.stamp[ns as usize] != gen {
-                g.scratch.stamp[ns as usize] = gen;
+            if g.scratch.states[ns as usize].stamp != gen {
+                g.scratch.states[ns as usize].stamp = gen;
                 stack.push(ns);
             }
         }
