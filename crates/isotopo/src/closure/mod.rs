@@ -519,6 +519,32 @@ impl Refusal {
 mod tests {
     use super::*;
 
+    /// The single samples are those within the reach of the loop's centroid, nearest first.
+    /// Round a unit square of x edges (centroid (5, 4.5, 4)) the squared distances are
+    /// dx² + dz² + (y - 4.5)²: within 1.8 (3.24) lie 2 samples at 0.25, 8 at 1.25, 10 at 2.25;
+    /// the 8 at 3.25 do not.
+    #[test]
+    fn single_sample_walls_lie_within_the_reach_nearest_first() {
+        let square: Vec<Vertex> = [[4, 4, 4], [4, 5, 4], [5, 4, 4], [5, 5, 4]]
+            .iter()
+            .map(|&p| Vertex { p, axis: 0 })
+            .collect();
+        let got = single_sample_walls(&square, 1.8);
+        let d2 = |q: &[i64; 3]| {
+            let d = [q[0] as f64 - 5.0, q[1] as f64 - 4.5, q[2] as f64 - 4.0];
+            d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        };
+        let rings: Vec<f64> = got.iter().map(d2).collect();
+        let count = |r: f64| rings.iter().filter(|&&x| x == r).count();
+        assert_eq!(
+            (count(0.25), count(1.25), count(2.25)),
+            (2, 8, 10),
+            "{rings:?}"
+        );
+        assert_eq!(got.len(), 20, "{rings:?}");
+        assert!(rings.windows(2).all(|w| w[0] <= w[1]), "nearest first");
+    }
+
     /// The base half-thickness stops the adjacency of the side a wall separates: across a
     /// plane, no two samples adjacent by that side's rule (26 for the outside when filling under
     /// connectivity 6 and the inside when cutting under 26; else 6) lie farther than it on
