@@ -1119,6 +1119,45 @@ pub fn find_handles(
 mod tests {
     use super::*;
 
+    /// (cube, piece index), with the piece's crossing points.
+    type Piece = (([i64; 3], u8), Vec<Vertex>);
+
+    /// Every piece of every cube of the slice `sl` (lower plane `z`), from the case table.
+    fn pieces_of(sl: &SliceSurfels, conn: Connectivity, z: i64) -> Vec<Piece> {
+        let mut pieces = Vec::new();
+        for cube in &sl.cubes {
+            let case = &cases(conn)[cube.case as usize];
+            let q = [cube.i as i64 - 1, cube.j as i64 - 1, z];
+            for (k, piece) in case.pieces.iter().enumerate() {
+                let mut vs: Vec<Vertex> = piece
+                    .loops
+                    .iter()
+                    .flatten()
+                    .map(|&e| vertex_of(q, e))
+                    .collect();
+                vs.sort();
+                vs.dedup();
+                pieces.push(((q, k as u8), vs));
+            }
+        }
+        pieces
+    }
+
+    /// The pieces joined into classes wherever two share a crossing point.
+    fn joined_by_points(pieces: &[Piece]) -> UnionFind {
+        let mut uf = UnionFind::new(pieces.len());
+        let mut owner: crate::surface::search::FastMap<Vertex, usize> = Default::default();
+        for (i, (_, vs)) in pieces.iter().enumerate() {
+            for v in vs {
+                if let Some(&j) = owner.get(v) {
+                    uf.union(i as u32, j as u32);
+                }
+                owner.insert(*v, i);
+            }
+        }
+        uf
+    }
+
     /// A ribbon is a connected piece of surface within its slice: the region a handle is looked
     /// for in directly is exactly one class of the slice's pieces joined by shared crossing
     /// points (found here by a union-find over every piece of every cube, not from the slice's
@@ -1138,58 +1177,31 @@ mod tests {
             let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
             for z in -1..4i64 {
                 let sl = SliceSurfels::build(vol.plane(z), vol.plane(z + 1), z as i32, conn);
-                // (cube, piece index), with the piece's crossing points.
-                type Piece = (([i64; 3], u8), Vec<Vertex>);
-                let mut pieces: Vec<Piece> = Vec::new();
-                for cube in &sl.cubes {
-                    let case = &cases(conn)[cube.case as usize];
-                    let q = [cube.i as i64 - 1, cube.j as i64 - 1, z];
-                    multi += (case.n_pieces > 1) as usize;
-                    for (k, piece) in case.pieces.iter().enumerate() {
-                        let mut vs: Vec<Vertex> = piece
-                            .loops
-                            .iter()
-                            .flatten()
-                            .map(|&e| vertex_of(q, e))
-                            .collect();
-                        vs.sort();
-                        vs.dedup();
-                        pieces.push(((q, k as u8), vs));
-                    }
-                }
-                let mut uf = UnionFind::new(pieces.len());
-                let mut owner: crate::surface::search::FastMap<Vertex, usize> = Default::default();
-                for (i, (_, vs)) in pieces.iter().enumerate() {
-                    for v in vs {
-                        if let Some(&j) = owner.get(v) {
-                            uf.union(i as u32, j as u32);
-                        }
-                        owner.insert(*v, i);
-                    }
-                }
+                let pieces = pieces_of(&sl, conn, z);
+                let several =
+                    |c: &&crate::topology::slice::Cube| cases(conn)[c.case as usize].n_pieces > 1;
+                multi += sl.cubes.iter().filter(several).count();
+                let mut uf = joined_by_points(&pieces);
                 let mut seen = vec![false; pieces.len()];
                 for r in 0..sl.ribbons.len() as u32 {
+                    let at = format!("round {round} z {z} ribbon {r}");
                     let (verts, region) = ribbon_region(&sl, conn, r, z);
                     let members: Vec<usize> = (0..pieces.len())
                         .filter(|&i| region.0.contains_key(&pieces[i].0))
                         .collect();
-                    assert_eq!(
-                        members.len(),
-                        region.0.len(),
-                        "round {round} z {z} ribbon {r}: a piece of no cube"
-                    );
-                    let class = uf.find(members[0] as u32);
+                    assert_eq!(members.len(), region.0.len(), "{at}: a piece of no cube");
+                    let class = uf.find(*members.first().expect("a ribbon has pieces") as u32);
                     let want: Vec<usize> = (0..pieces.len())
                         .filter(|&i| uf.find(i as u32) == class)
                         .collect();
-                    assert_eq!(members, want, "round {round} z {z} ribbon {r}");
+                    assert_eq!(members, want, "{at}");
                     let mut vs: Vec<Vertex> =
                         members.iter().flat_map(|&i| pieces[i].1.clone()).collect();
                     vs.sort();
                     vs.dedup();
-                    assert_eq!(verts, vs, "round {round} z {z} ribbon {r}");
+                    assert_eq!(verts, vs, "{at}");
                     for i in members {
-                        assert!(!seen[i], "round {round} z {z}: a piece in two ribbons");
+                        assert!(!seen[i], "{at}: a piece in two ribbons");
                         seen[i] = true;
                     }
                 }
