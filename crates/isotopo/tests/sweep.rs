@@ -58,6 +58,25 @@ fn check(
             g.surfaces.len()
         ));
     }
+    // Each handle on the surface of its number in the genus pass: its cycle's cubes (lower
+    // corners) within that surface's samples' box, one sample wider below.
+    for h in &r.handles {
+        let b = &h.located.bbox;
+        let sb = &g
+            .surfaces
+            .iter()
+            .find(|s| s.id == h.surface)
+            .ok_or("no such surface")?
+            .bbox;
+        if (0..3).any(|k| b.min[k] < sb.min[k] - 1 || b.max[k] > sb.max[k]) {
+            return Err(format!(
+                "{name}, axis {}: handle {} in {b:?}, its surface {} in {sb:?}",
+                axis.name(),
+                h.id,
+                h.surface
+            ));
+        }
+    }
     // Same surface numbering and genus as the genus pass.
     for s in &g.surfaces {
         if r.surfaces[s.id].genus != s.genus as i64 {

@@ -402,22 +402,10 @@ impl Sweeper {
                 id
             })
             .collect();
-        let table = cases(self.conn);
-        let mut keys = vec![[i32::MAX; 4]; cur.ribbons.len()];
         let least_corner = self
             .least_corner
             .get_or_insert_with(|| Box::new(least_original_corners(&vol.frame)));
-        for cube in &cur.cubes {
-            let case = &table[cube.case as usize];
-            let o = vol
-                .frame
-                .to_original_i([cube.i as i64 - 1, cube.j as i64 - 1, s]);
-            for k in 0..case.n_pieces as usize {
-                let r = cur.piece_ribbon[cube.first_piece as usize + k] as usize;
-                let corner = least_corner[case.pieces[k].corners as usize];
-                keys[r] = keys[r].min([o[2] as i32, o[1] as i32, o[0] as i32, corner as i32]);
-            }
-        }
+        let keys = ribbon_keys(cur, &vol.frame, cases(self.conn), least_corner, s);
         for (r, k) in keys.into_iter().enumerate() {
             self.ribbon_key.push((ribbon_node[r], k));
         }
@@ -1115,6 +1103,29 @@ pub fn find_handles(
     })
 }
 
+/// The key of each ribbon of slice `s` that numbers surfaces: the least, over its pieces, of
+/// (z, y, x) of the piece's cube and the piece's least inside corner, in original coordinates
+/// (`least_corner` from [`least_original_corners`] of `frame`).
+fn ribbon_keys(
+    cur: &SliceSurfels,
+    frame: &Frame,
+    table: &[Case; 256],
+    least_corner: &[u8; 256],
+    s: i64,
+) -> Vec<[i32; 4]> {
+    let mut keys = vec![[i32::MAX; 4]; cur.ribbons.len()];
+    for cube in &cur.cubes {
+        let case = &table[cube.case as usize];
+        let o = frame.to_original_i([cube.i as i64 - 1, cube.j as i64 - 1, s]);
+        for k in 0..case.n_pieces as usize {
+            let r = cur.piece_ribbon[cube.first_piece as usize + k] as usize;
+            let corner = least_corner[case.pieces[k].corners as usize];
+            keys[r] = keys[r].min([o[2] as i32, o[1] as i32, o[0] as i32, corner as i32]);
+        }
+    }
+    keys
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1162,7 +1173,8 @@ mod tests {
     /// for in directly is exactly one class of the slice's pieces joined by shared crossing
     /// points (found here by a union-find over every piece of every cube, not from the slice's
     /// labels), with its crossing points; the ribbons' regions share no piece and cover all.
-    /// Random masks (cubes of two and more pieces are common), both connectivities.
+    /// Each ribbon's key (which numbers surfaces) is the least of its pieces'. Random masks
+    /// (cubes of two and more pieces are common), both connectivities.
     #[test]
     fn a_ribbons_region_is_one_connected_class_of_pieces() {
         let mut rng = crate::test_rng::Rng(0x5851_f42d_4c95_7f2d);
@@ -1182,6 +1194,16 @@ mod tests {
                     |c: &&crate::topology::slice::Cube| cases(conn)[c.case as usize].n_pieces > 1;
                 multi += sl.cubes.iter().filter(several).count();
                 let mut uf = joined_by_points(&pieces);
+                let least = least_original_corners(&Frame::identity());
+                let keys = ribbon_keys(&sl, &Frame::identity(), cases(conn), &least, z);
+                let case_of = |sl: &SliceSurfels, q: [i64; 3]| {
+                    let cube = sl
+                        .cubes
+                        .iter()
+                        .find(|c| [c.i as i64 - 1, c.j as i64 - 1] == [q[0], q[1]])
+                        .expect("the piece's cube");
+                    &cases(conn)[cube.case as usize]
+                };
                 let mut seen = vec![false; pieces.len()];
                 for r in 0..sl.ribbons.len() as u32 {
                     let at = format!("round {round} z {z} ribbon {r}");
@@ -1200,6 +1222,16 @@ mod tests {
                     vs.sort();
                     vs.dedup();
                     assert_eq!(verts, vs, "{at}");
+                    // The ribbon's key: the least (z, y, x, least inside corner) of its pieces.
+                    let key = members
+                        .iter()
+                        .map(|&i| {
+                            let ((q, k), _) = pieces[i];
+                            let c = case_of(&sl, q).pieces[k as usize].corners.trailing_zeros();
+                            [q[2] as i32, q[1] as i32, q[0] as i32, c as i32]
+                        })
+                        .min();
+                    assert_eq!(Some(keys[r as usize]), key, "{at}: key");
                     for i in members {
                         assert!(!seen[i], "{at}: a piece in two ribbons");
                         seen[i] = true;
