@@ -1130,8 +1130,8 @@ fn ribbon_keys(
 mod tests {
     use super::*;
 
-    /// (cube, piece index), with the piece's crossing points.
-    type Piece = (([i64; 3], u8), Vec<Vertex>);
+    /// (cube, piece index), with the piece's crossing points and its inside corners.
+    type Piece = (([i64; 3], u8), Vec<Vertex>, u8);
 
     /// Every piece of every cube of the slice `sl` (lower plane `z`), from the case table.
     fn pieces_of(sl: &SliceSurfels, conn: Connectivity, z: i64) -> Vec<Piece> {
@@ -1148,7 +1148,7 @@ mod tests {
                     .collect();
                 vs.sort();
                 vs.dedup();
-                pieces.push(((q, k as u8), vs));
+                pieces.push(((q, k as u8), vs, piece.corners));
             }
         }
         pieces
@@ -1158,7 +1158,7 @@ mod tests {
     fn joined_by_points(pieces: &[Piece]) -> UnionFind {
         let mut uf = UnionFind::new(pieces.len());
         let mut owner: crate::surface::search::FastMap<Vertex, usize> = Default::default();
-        for (i, (_, vs)) in pieces.iter().enumerate() {
+        for (i, (_, vs, _)) in pieces.iter().enumerate() {
             for v in vs {
                 if let Some(&j) = owner.get(v) {
                     uf.union(i as u32, j as u32);
@@ -1196,14 +1196,6 @@ mod tests {
                 let mut uf = joined_by_points(&pieces);
                 let least = least_original_corners(&Frame::identity());
                 let keys = ribbon_keys(&sl, &Frame::identity(), cases(conn), &least, z);
-                let case_of = |sl: &SliceSurfels, q: [i64; 3]| {
-                    let cube = sl
-                        .cubes
-                        .iter()
-                        .find(|c| [c.i as i64 - 1, c.j as i64 - 1] == [q[0], q[1]])
-                        .expect("the piece's cube");
-                    &cases(conn)[cube.case as usize]
-                };
                 let mut seen = vec![false; pieces.len()];
                 for r in 0..sl.ribbons.len() as u32 {
                     let at = format!("round {round} z {z} ribbon {r}");
@@ -1226,8 +1218,8 @@ mod tests {
                     let key = members
                         .iter()
                         .map(|&i| {
-                            let ((q, k), _) = pieces[i];
-                            let c = case_of(&sl, q).pieces[k as usize].corners.trailing_zeros();
+                            let ((q, _), _, corners) = pieces[i];
+                            let c = corners.trailing_zeros();
                             [q[2] as i32, q[1] as i32, q[0] as i32, c as i32]
                         })
                         .min();

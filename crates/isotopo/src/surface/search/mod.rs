@@ -560,12 +560,13 @@ struct State {
     source: u32,
 }
 
-/// The next generation of `stamps` (an entry is set in this generation when it equals the
-/// result); when the counter wraps, every stamp is cleared so none looks current.
-fn advance(generation: &mut u32, stamps: &mut [u32]) -> u32 {
+/// The next generation of a set of stamps (an entry is set in this generation when its stamp
+/// equals the result); when the counter wraps, `clear` sets every stamp to 0 so none looks
+/// current.
+fn advance(generation: &mut u32, clear: impl FnOnce()) -> u32 {
     *generation = generation.wrapping_add(1);
     if *generation == 0 {
-        stamps.fill(0);
+        clear();
         *generation = 1;
     }
     *generation
@@ -574,22 +575,22 @@ fn advance(generation: &mut u32, stamps: &mut [u32]) -> u32 {
 impl Scratch {
     /// A fresh stamp for the state arrays.
     fn next_generation(&mut self) -> u32 {
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 {
-            self.states.iter_mut().for_each(|x| x.stamp = 0);
-            self.generation = 1;
-        }
-        self.generation
+        let states = &mut self.states;
+        advance(&mut self.generation, || {
+            states.iter_mut().for_each(|x| x.stamp = 0)
+        })
     }
 
     /// A new region: forget which edges were usable.
     fn next_region(&mut self) {
-        advance(&mut self.region_generation, &mut self.usable_stamp);
+        let stamps = &mut self.usable_stamp;
+        advance(&mut self.region_generation, || stamps.fill(0));
     }
 
     /// A fresh stamp for the marks of a new set of curves.
     fn next_mark_generation(&mut self) -> u32 {
-        advance(&mut self.mark_generation, &mut self.mark_stamp)
+        let stamps = &mut self.mark_stamp;
+        advance(&mut self.mark_generation, || stamps.fill(0))
     }
 
     fn ensure(&mut self, states: usize, vertices: usize) {
