@@ -257,15 +257,35 @@ fn only_in(a: &[(PieceKey, i64)], b: &[(PieceKey, i64)]) -> (Vec<Vertex>, i64) {
 /// gathering them for every wall tried was a twentieth of `simplify`).
 struct Tube<'l> {
     lp: &'l [Vertex],
+    /// The offsets, along each axis, of the cubes taken round each vertex of the loop.
+    offsets: std::ops::RangeInclusive<i64>,
     cubes: std::cell::OnceCell<FastMap<[i64; 3], ()>>,
     lo: [i64; 3],
     hi: [i64; 3],
 }
 
 impl Tube<'_> {
+    /// The cubes within two of the loop's vertices.
     fn new(lp: &[Vertex], lo: [i64; 3], hi: [i64; 3]) -> Tube<'_> {
+        Tube::with_offsets(lp, lo, hi, -2..=2)
+    }
+
+    /// Only the eight cubes that hold each vertex of the loop (its edge is one of theirs): the
+    /// loop's own steps, about a tenth of [`Tube::new`]'s cubes, and enough wherever the loop
+    /// is still on the surface beyond the box.
+    fn thin(lp: &[Vertex], lo: [i64; 3], hi: [i64; 3]) -> Tube<'_> {
+        Tube::with_offsets(lp, lo, hi, -1..=0)
+    }
+
+    fn with_offsets(
+        lp: &[Vertex],
+        lo: [i64; 3],
+        hi: [i64; 3],
+        offsets: std::ops::RangeInclusive<i64>,
+    ) -> Tube<'_> {
         Tube {
             lp,
+            offsets,
             cubes: std::cell::OnceCell::new(),
             lo,
             hi,
@@ -278,12 +298,13 @@ impl Tube<'_> {
             // Consecutive vertices are a step apart: most of a vertex's cubes were its
             // predecessor's too, and only the others are inserted.
             let mut prev: Option<[i64; 3]> = None;
+            let d = self.offsets.clone();
             for v in self.lp {
-                for dz in -2..=2 {
-                    for dy in -2..=2 {
-                        for dx in -2..=2 {
+                for dz in d.clone() {
+                    for dy in d.clone() {
+                        for dx in d.clone() {
                             let c = [v.p[0] + dx, v.p[1] + dy, v.p[2] + dz];
-                            if prev.is_some_and(|q| (0..3).all(|k| (c[k] - q[k]).abs() <= 2)) {
+                            if prev.is_some_and(|q| (0..3).all(|k| d.contains(&(c[k] - q[k])))) {
                                 continue;
                             }
                             cubes.insert(c, ());
@@ -305,7 +326,7 @@ impl Region for Tube<'_> {
 }
 
 /// Is every one of `others` on the same surface as `from`? Searched near first, then along the
-/// handle's other loop; then from both ends with budgets growing fourfold, so a piece on a small
+/// handle's other loop (in its own cubes, then within two of it); then from both ends with budgets growing fourfold, so a piece on a small
 /// separate surface is told apart at the cost of that small surface, not of the large one.
 /// (A path found within a region is a path on the surface, so only "no" needs the whole search.)
 fn joined(
@@ -313,13 +334,15 @@ fn joined(
     from: &[Vertex],
     others: &[Vertex],
     near: &dyn Region,
-    along: &Tube,
+    along: &[Tube],
 ) -> bool {
     if g.reach(from, others, None, near, usize::MAX) == Reach::Reached {
         return true;
     }
-    if !along.lp.is_empty() && g.reach(from, others, None, along, usize::MAX) == Reach::Reached {
-        return true;
+    for tube in along.iter().filter(|t| !t.lp.is_empty()) {
+        if g.reach(from, others, None, tube, usize::MAX) == Reach::Reached {
+            return true;
+        }
     }
     let mut budget = 1 << 10;
     loop {
@@ -444,7 +467,8 @@ pub fn close(
         [m[0].max(q[0]), m[1].max(q[1]), m[2].max(q[2])]
     });
     let near = InBox::cubes(lo.map(|x| x - 2), hi.map(|x| x + 2));
-    let along = Tube::new(partner, lo.map(|x| x - 2), hi.map(|x| x + 2));
+    let (lo2, hi2) = (lo.map(|x| x - 2), hi.map(|x| x + 2));
+    let along = [Tube::thin(partner, lo2, hi2), Tube::new(partner, lo2, hi2)];
     for q in &changed {
         vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);
     }
@@ -543,6 +567,81 @@ mod tests {
         );
         assert_eq!(got.len(), 20, "{rings:?}");
         assert!(rings.windows(2).all(|w| w[0] <= w[1]), "nearest first");
+    }
+
+    /// A solid torus about z through the middle of an n³ volume, radii `big` and `small`.
+    fn torus(n: usize, big: f64, small: f64) -> MaskVolume {
+        let mut v = MaskVolume::new([n, n, n], crate::grid::Frame::identity());
+        let c = (n as f64 - 1.0) / 2.0 + 0.01;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
+                    if ((dx * dx + dy * dy).sqrt() - big).hypot(dz) < small {
+                        v.set(x, y, z, true);
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// A thin tube holds exactly the eight cubes round each vertex of its loop, a wide one those
+    /// within two; and the thin one is enough to walk the whole loop (round a torus's hole, its
+    /// outer equator) with no box at all, in about a tenth of the wide one's cubes.
+    #[test]
+    fn a_thin_tube_holds_its_loops_steps() {
+        let vol = torus(24, 7.0, 2.6);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let mut g = Graph::new(&vol, cases(conn));
+            let start = (12..24)
+                .rev()
+                .map(|x| Vertex {
+                    p: [x, 12, 11],
+                    axis: 0,
+                })
+                .find(|&v| crate::surface::is_crossing(&vol, v))
+                .unwrap();
+            let equator = crate::surface::search::walk_contour(&g, start, 11).unwrap();
+            assert!(equator.len() > 40, "{}", equator.len());
+            let no_box = ([1; 3], [0; 3]);
+            let (thin, wide) = (
+                Tube::thin(&equator, no_box.0, no_box.1),
+                Tube::new(&equator, no_box.0, no_box.1),
+            );
+            let within = |c: &[i64; 3], d: std::ops::RangeInclusive<i64>| {
+                equator
+                    .iter()
+                    .any(|v| (0..3).all(|k| d.contains(&(c[k] - v.p[k]))))
+            };
+            let all = |d: i64| -> Vec<[i64; 3]> {
+                let r = -d - 1..=d + 1;
+                let mut out = Vec::new();
+                for z in r.clone() {
+                    for y in r.clone() {
+                        for x in r.clone() {
+                            out.extend(
+                                equator.iter().map(|v| [v.p[0] + x, v.p[1] + y, v.p[2] + z]),
+                            );
+                        }
+                    }
+                }
+                out
+            };
+            for c in all(2) {
+                assert_eq!(thin.cubes().contains_key(&c), within(&c, -1..=0), "{c:?}");
+                assert_eq!(wide.cubes().contains_key(&c), within(&c, -2..=2), "{c:?}");
+            }
+            let (n_thin, n_wide) = (thin.cubes().len(), wide.cubes().len());
+            assert!(5 * n_thin < n_wide, "{n_thin} of {n_wide}");
+            let got = g.reach(&equator[..1], &equator, None, &thin, usize::MAX);
+            assert_eq!(got, Reach::Reached);
+            // Nor is the box needed: without the tube's cubes, a box that holds no cube stops
+            // the search at once.
+            let empty = InBox::cubes(no_box.0, no_box.1);
+            let got = g.reach(&equator[..1], &equator, None, &empty, usize::MAX);
+            assert_ne!(got, Reach::Reached);
+        }
     }
 
     /// The base half-thickness stops the adjacency of the side a wall separates: across a
