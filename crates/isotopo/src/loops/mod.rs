@@ -775,7 +775,7 @@ fn ribbon_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Ve
     let (slice, ribbon) = h.located.ribbon?;
     let vol = top.vol;
     let b = &h.located.bbox;
-    let centre: [f64; 3] = std::array::from_fn(|k| (b.min[k] + b.max[k]) as f64 / 2.0 + 0.5);
+    let centre = b.cube_centre();
     let nearest = |cycles: Vec<Vec<Vertex>>| nearest_loop(&vol.frame, centre, cycles);
     // An empty box (none in practice) goes straight to the whole ribbon.
     let near = (b.min[0] <= b.max[0]).then(|| vol.frame.to_local_box(b));
@@ -2829,8 +2829,7 @@ mod tests {
             let mut cache = SliceCache::new(conn);
             for h in r.handles.iter().filter(|h| h.located.ribbon.is_some()) {
                 let b = &h.located.bbox;
-                let centre: [f64; 3] =
-                    std::array::from_fn(|k| (b.min[k] + b.max[k]) as f64 / 2.0 + 0.5);
+                let centre = b.cube_centre();
                 let lp = ribbon_loop(&mut g, &mut cache, h).expect("a ribbon loop");
                 let distance = |v: &Vertex| {
                     let p = vol.frame.to_original(v.midpoint());

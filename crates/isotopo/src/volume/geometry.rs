@@ -154,6 +154,11 @@ impl BBox {
         self.include(o.min);
         self.include(o.max);
     }
+    /// The centre of the box read as one of cubes by their lower corners (as a handle's
+    /// cycle box is): the cubes `min..=max` span `min..=max + 1` along each axis.
+    pub fn cube_centre(&self) -> [f64; 3] {
+        std::array::from_fn(|k| (self.min[k] + self.max[k] + 1) as f64 / 2.0)
+    }
     /// Corners in millimetres (the box of the transformed voxel box).
     pub fn to_mm(&self, affine: &Affine) -> [[f64; 3]; 2] {
         let mut lo = [f64::INFINITY; 3];
@@ -171,5 +176,24 @@ impl BBox {
             }
         }
         [lo, hi]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A box of cubes is centred between its first cube's lower corner and its last cube's
+    /// upper one: one cube at (2, 3, 4) has its centre at (2.5, 3.5, 4.5); cubes 0 to 3 along x
+    /// span 0..4, centre 2.
+    #[test]
+    fn a_box_of_cubes_is_centred_on_their_span() {
+        let mut one = BBox::EMPTY;
+        one.include([2, 3, 4]);
+        assert_eq!(one.cube_centre(), [2.5, 3.5, 4.5]);
+        let mut row = BBox::EMPTY;
+        row.include([0, -1, 7]);
+        row.include([3, -1, 7]);
+        assert_eq!(row.cube_centre(), [2.0, -0.5, 7.5]);
     }
 }
