@@ -591,6 +591,70 @@ mod tests {
         assert_eq!(basis_kind(&none, &a), LoopKind::Basis);
     }
 
+    /// The last resort closes a handle from its two basis curves alone (no Reeb or cross loop
+    /// known): a torus's outer equator and the meridian crossing it once. In every mode, with
+    /// the operation the mode allows (cutting the tube or filling the hole), the wall takes the
+    /// torus to genus 0 and leaves it one component with no cavity.
+    #[test]
+    fn the_basis_curves_alone_close_a_torus() {
+        use crate::surface::search::{shortest_odd_loop, walk_contour, Everywhere};
+        let n = 24;
+        let torus = || {
+            let mut v = MaskVolume::new([n, n, n], Frame::identity());
+            let c = (n as f64 - 1.0) / 2.0 + 0.01;
+            for (x, y, z) in (0..n * n * n).map(|k| (k % n, k / n % n, k / (n * n))) {
+                let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
+                v.set(x, y, z, ((dx * dx + dy * dy).sqrt() - 7.0).hypot(dz) < 2.6);
+            }
+            v
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let vol = torus();
+            let mut g = Graph::new(&vol, cases(conn));
+            let start = (12..24)
+                .rev()
+                .map(|x| Vertex {
+                    p: [x as i64, 12, 11],
+                    axis: 0,
+                })
+                .find(|&v| crate::surface::is_crossing(&vol, v))
+                .unwrap();
+            let equator = walk_contour(&g, start, 11).unwrap();
+            let meridian = shortest_odd_loop(&mut g, &equator, &Everywhere, usize::MAX).unwrap();
+            let l = HandleLoops {
+                reeb: None,
+                cross: None,
+                exact: true,
+                basis: Some((equator.clone(), meridian.clone())),
+                cut_points: None,
+            };
+            for mode in [Mode::Both, Mode::FillOnly, Mode::CutOnly] {
+                let mut opts = SimplifyOptions {
+                    mode,
+                    ..SimplifyOptions::default()
+                };
+                opts.surface.connectivity = conn;
+                let mut vol = torus();
+                let before = vol.genus(conn).unwrap();
+                assert_eq!((before.b0, before.b1), (1, 1));
+                let (mut graph, mut refused) = (GraphCache::default(), Refused::default());
+                let walling = (&mut graph, &mut refused, &Locked::default());
+                let closed = close_basis(&mut vol, &opts, &l, &affine, walling, WallReach::Across)
+                    .unwrap_or_else(|| panic!("{conn:?} {mode:?}: not closed"));
+                assert_eq!(closed.applied.handles, 1, "{conn:?} {mode:?}");
+                assert!(mode.allows(closed.applied.op), "{conn:?} {mode:?}");
+                assert_eq!(closed.which, LoopKind::Basis);
+                let after = vol.genus(conn).unwrap();
+                assert_eq!(
+                    (after.b0, after.b1, after.b2),
+                    (1, 0, 0),
+                    "{conn:?} {mode:?}"
+                );
+            }
+        }
+    }
+
     /// Gathered once for the thinnest fan, the samples near the fan are gathered again as far
     /// as a wider wall needs: every call gives what a fresh gathering to that reach gives.
     #[test]
