@@ -48,3 +48,39 @@ pub(crate) fn sponge(n: usize, seed: u64) -> crate::volume::InMemoryVolume {
             - 3.5
     })
 }
+
+/// A solid torus about z through the middle of an n³ volume (centre a hundredth of a voxel off
+/// the grid, so no sample lies on its surface), radii `big` and `small`.
+pub(crate) fn torus(n: usize, big: f64, small: f64) -> crate::grid::MaskVolume {
+    let mut v = crate::grid::MaskVolume::new([n, n, n], crate::grid::Frame::identity());
+    let c = (n as f64 - 1.0) / 2.0 + 0.01;
+    for (x, y, z) in (0..n * n * n).map(|k| (k % n, k / n % n, k / (n * n))) {
+        let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
+        v.set(
+            x,
+            y,
+            z,
+            ((dx * dx + dy * dy).sqrt() - big).hypot(dz) < small,
+        );
+    }
+    v
+}
+
+/// On [`torus`]`(24, 7.0, 2.6)`: its outer equator (the contour round the hole in plane 11)
+/// and the shortest loop crossing it once (a meridian, round the tube).
+pub(crate) fn torus_equator_and_meridian(
+    g: &mut crate::surface::search::Graph,
+) -> (Vec<crate::surface::Vertex>, Vec<crate::surface::Vertex>) {
+    use crate::surface::search::{shortest_odd_loop, walk_contour, Everywhere};
+    let start = (12..24)
+        .rev()
+        .map(|x| crate::surface::Vertex {
+            p: [x, 12, 11],
+            axis: 0,
+        })
+        .find(|&v| crate::surface::is_crossing(g.vol, v))
+        .expect("the torus crosses row y 12 of plane 11");
+    let equator = walk_contour(g, start, 11).expect("a contour");
+    let meridian = shortest_odd_loop(g, &equator, &Everywhere, usize::MAX).expect("a meridian");
+    (equator, meridian)
+}

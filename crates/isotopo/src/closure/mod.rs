@@ -569,40 +569,15 @@ mod tests {
         assert!(rings.windows(2).all(|w| w[0] <= w[1]), "nearest first");
     }
 
-    /// A solid torus about z through the middle of an n³ volume, radii `big` and `small`.
-    fn torus(n: usize, big: f64, small: f64) -> MaskVolume {
-        let mut v = MaskVolume::new([n, n, n], crate::grid::Frame::identity());
-        let c = (n as f64 - 1.0) / 2.0 + 0.01;
-        for z in 0..n {
-            for y in 0..n {
-                for x in 0..n {
-                    let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
-                    if ((dx * dx + dy * dy).sqrt() - big).hypot(dz) < small {
-                        v.set(x, y, z, true);
-                    }
-                }
-            }
-        }
-        v
-    }
-
     /// A thin tube holds exactly the eight cubes round each vertex of its loop, a wide one those
     /// within two; and the thin one is enough to walk the whole loop (round a torus's hole, its
     /// outer equator) with no box at all, in about a tenth of the wide one's cubes.
     #[test]
     fn a_thin_tube_holds_its_loops_steps() {
-        let vol = torus(24, 7.0, 2.6);
+        let vol = crate::test_rng::torus(24, 7.0, 2.6);
         for conn in [Connectivity::Six, Connectivity::TwentySix] {
             let mut g = Graph::new(&vol, cases(conn));
-            let start = (12..24)
-                .rev()
-                .map(|x| Vertex {
-                    p: [x, 12, 11],
-                    axis: 0,
-                })
-                .find(|&v| crate::surface::is_crossing(&vol, v))
-                .unwrap();
-            let equator = crate::surface::search::walk_contour(&g, start, 11).unwrap();
+            let (equator, _) = crate::test_rng::torus_equator_and_meridian(&mut g);
             assert!(equator.len() > 40, "{}", equator.len());
             let no_box = ([1; 3], [0; 3]);
             let (thin, wide) = (

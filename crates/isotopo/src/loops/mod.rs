@@ -1331,20 +1331,8 @@ pub fn measure(
     let mut c = cross
         .as_ref()
         .map(|lp| describe(vol, lp, reeb.as_deref(), &geometry));
-    // Exactly one of the two encloses material (paper §2.2); where linking could not tell, the
-    // other loop decides.
     if let (Some(a), Some(b)) = (&mut r, &mut c) {
-        if a.encloses == b.encloses {
-            let (la, lb) = (
-                link_strength(vol, &a.vertices, &b.vertices),
-                link_strength(vol, &b.vertices, &a.vertices),
-            );
-            if la >= lb {
-                b.encloses = opposite(a.encloses);
-            } else {
-                a.encloses = opposite(b.encloses);
-            }
-        }
+        one_side_each(vol, a, b);
     }
     let cut_points = matches!(h.located.volume, CycleVolume::Top).then(|| {
         h.located
@@ -1359,6 +1347,23 @@ pub fn measure(
         exact: found.exact,
         basis: found.basis,
         cut_points,
+    }
+}
+
+/// Exactly one of a handle's two loops encloses material (paper §2.2). Where their linkings
+/// gave both the same side, the loop whose linking with the other is the stronger (the first
+/// on a tie) keeps its side, and the other takes the opposite.
+fn one_side_each(vol: &MaskVolume, a: &mut Loop, b: &mut Loop) {
+    if a.encloses == b.encloses {
+        let (la, lb) = (
+            link_strength(vol, &a.vertices, &b.vertices),
+            link_strength(vol, &b.vertices, &a.vertices),
+        );
+        if la >= lb {
+            b.encloses = opposite(a.encloses);
+        } else {
+            a.encloses = opposite(b.encloses);
+        }
     }
 }
 
@@ -2854,6 +2859,47 @@ mod tests {
             in_box * 10 >= n * 9,
             "{in_box} of {n} within the box grown by 4"
         );
+    }
+
+    /// Where linking gave a handle's two loops the same side, the stronger link keeps its side
+    /// and the other loop takes the opposite; sides that differ stay. A torus's equator and
+    /// meridian (their linkings tell the sides apart: equator round void, meridian round
+    /// material), given each pair of sides, in both orders.
+    #[test]
+    fn a_handles_two_loops_go_round_opposite_sides() {
+        use Encloses::{Material, Void};
+        let vol = crate::test_rng::torus(24, 7.0, 2.6);
+        let mut g = Graph::new(&vol, cases(Connectivity::Six));
+        let (equator, meridian) = crate::test_rng::torus_equator_and_meridian(&mut g);
+        let geometry = Geometry {
+            affine: &Affine::from_spacing([1.0; 3], [0.0; 3]),
+            fractions: None,
+        };
+        let eq = describe(&vol, &equator, Some(&meridian), &geometry);
+        let me = describe(&vol, &meridian, Some(&equator), &geometry);
+        assert_eq!((eq.encloses, me.encloses), (Void, Material));
+        for (x, y) in [(&eq, &me), (&me, &eq)] {
+            let stronger_first = link_strength(&vol, &x.vertices, &y.vertices)
+                >= link_strength(&vol, &y.vertices, &x.vertices);
+            for (sx, sy) in [
+                (Void, Void),
+                (Material, Material),
+                (Void, Material),
+                (Material, Void),
+            ] {
+                let (mut a, mut b) = (x.clone(), y.clone());
+                (a.encloses, b.encloses) = (sx, sy);
+                one_side_each(&vol, &mut a, &mut b);
+                let want = if sx != sy {
+                    (sx, sy)
+                } else if stronger_first {
+                    (sx, opposite(sx))
+                } else {
+                    (opposite(sy), sy)
+                };
+                assert_eq!((a.encloses, b.encloses), want, "{sx:?} {sy:?}");
+            }
+        }
     }
 
     /// A peeled wall moved along its loop's partner lies within half the partner of the loop

@@ -597,31 +597,12 @@ mod tests {
     /// torus to genus 0 and leaves it one component with no cavity.
     #[test]
     fn the_basis_curves_alone_close_a_torus() {
-        use crate::surface::search::{shortest_odd_loop, walk_contour, Everywhere};
-        let n = 24;
-        let torus = || {
-            let mut v = MaskVolume::new([n, n, n], Frame::identity());
-            let c = (n as f64 - 1.0) / 2.0 + 0.01;
-            for (x, y, z) in (0..n * n * n).map(|k| (k % n, k / n % n, k / (n * n))) {
-                let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
-                v.set(x, y, z, ((dx * dx + dy * dy).sqrt() - 7.0).hypot(dz) < 2.6);
-            }
-            v
-        };
+        let torus = || crate::test_rng::torus(24, 7.0, 2.6);
         let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         for conn in [Connectivity::Six, Connectivity::TwentySix] {
             let vol = torus();
             let mut g = Graph::new(&vol, cases(conn));
-            let start = (12..24)
-                .rev()
-                .map(|x| Vertex {
-                    p: [x as i64, 12, 11],
-                    axis: 0,
-                })
-                .find(|&v| crate::surface::is_crossing(&vol, v))
-                .unwrap();
-            let equator = walk_contour(&g, start, 11).unwrap();
-            let meridian = shortest_odd_loop(&mut g, &equator, &Everywhere, usize::MAX).unwrap();
+            let (equator, meridian) = crate::test_rng::torus_equator_and_meridian(&mut g);
             let l = HandleLoops {
                 reeb: None,
                 cross: None,

@@ -1378,23 +1378,7 @@ mod tests {
     use crate::grid::{Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
-    /// A solid torus about z: centre (c, c, c), radii R, r.
-    fn torus(n: usize, big: f64, small: f64) -> MaskVolume {
-        let mut v = MaskVolume::new([n, n, n], Frame::identity());
-        let c = (n as f64 - 1.0) / 2.0 + 0.01;
-        for z in 0..n {
-            for y in 0..n {
-                for x in 0..n {
-                    let (dx, dy, dz) = (x as f64 - c, y as f64 - c, z as f64 - c);
-                    let q = ((dx * dx + dy * dy).sqrt() - big).hypot(dz);
-                    if q < small {
-                        v.set(x, y, z, true);
-                    }
-                }
-            }
-        }
-        v
-    }
+    use crate::test_rng::torus;
 
     /// The contour in plane `w` through the first crossing found along +x from the centre line.
     fn contour_from(g: &mut Graph, w: i64, start_x: i64, y: i64) -> Vec<Vertex> {
