@@ -475,7 +475,9 @@ mod tests {
 
     /// Peeled three samples thick, the bar is thinned to a thread and cut at its centre; every
     /// peeled sample that can go back without joining the two sides goes back: the wall is
-    /// one section of the bar, the middle one (9 samples, not the 27 of the slab).
+    /// one section of the bar, the middle one (9 samples, not the 27 of the slab). Each later
+    /// cut of the thread starts from the thinned slab again, and its wall too is 9 samples that
+    /// cut the ring and nothing else.
     #[test]
     fn a_peeled_wall_keeps_only_what_the_cut_needs() {
         let (mut vol, pts) = ring_and_loop(true);
@@ -483,6 +485,20 @@ mod tests {
         let wall = walls.first().expect("a cut");
         assert_eq!(wall.len(), 9, "{wall:?}");
         assert!(wall.iter().all(|q| q[0] == 6), "{wall:?}");
+        assert!(walls.len() >= 2, "{walls:?}");
+        for w in &walls {
+            assert_eq!(w.len(), 9, "{w:?}");
+            let set = |vol: &mut MaskVolume, inside: bool| {
+                for q in w {
+                    assert!(vol.get(q[0], q[1], q[2]) != inside, "{q:?} of {w:?}");
+                    vol.set(q[0] as usize, q[1] as usize, q[2] as usize, inside);
+                }
+            };
+            set(&mut vol, false);
+            let g = vol.genus(Connectivity::Six).unwrap();
+            assert_eq!((g.b0, g.b1), (1, 0), "{w:?}");
+            set(&mut vol, true);
+        }
     }
 
     /// A loop that does not go round the bar (beside it) links no ring: no wall.
