@@ -92,6 +92,8 @@ pub mod surface;
 pub mod sweep;
 #[cfg(test)]
 mod test_rng;
+#[cfg(test)]
+mod test_shapes;
 pub mod topology;
 pub(crate) mod unionfind;
 pub mod volume;

@@ -574,10 +574,10 @@ mod tests {
     /// outer equator) with no box at all, in about a tenth of the wide one's cubes.
     #[test]
     fn a_thin_tube_holds_its_loops_steps() {
-        let vol = crate::test_rng::torus(24, 7.0, 2.6);
+        let vol = crate::test_shapes::torus(24, 7.0, 2.6);
         for conn in [Connectivity::Six, Connectivity::TwentySix] {
             let mut g = Graph::new(&vol, cases(conn));
-            let (equator, _) = crate::test_rng::torus_equator_and_meridian(&mut g);
+            let (equator, _) = crate::surface::search::torus_equator_and_meridian(&mut g);
             assert!(equator.len() > 40, "{}", equator.len());
             let no_box = ([1; 3], [0; 3]);
             let (thin, wide) = (

@@ -2868,9 +2868,9 @@ mod tests {
     #[test]
     fn a_handles_two_loops_go_round_opposite_sides() {
         use Encloses::{Material, Void};
-        let vol = crate::test_rng::torus(24, 7.0, 2.6);
+        let vol = crate::test_shapes::torus(24, 7.0, 2.6);
         let mut g = Graph::new(&vol, cases(Connectivity::Six));
-        let (equator, meridian) = crate::test_rng::torus_equator_and_meridian(&mut g);
+        let (equator, meridian) = crate::surface::search::torus_equator_and_meridian(&mut g);
         let geometry = Geometry {
             affine: &Affine::from_spacing([1.0; 3], [0.0; 3]),
             fractions: None,

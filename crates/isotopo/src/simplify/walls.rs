@@ -597,12 +597,12 @@ mod tests {
     /// torus to genus 0 and leaves it one component with no cavity.
     #[test]
     fn the_basis_curves_alone_close_a_torus() {
-        let torus = || crate::test_rng::torus(24, 7.0, 2.6);
+        let torus = || crate::test_shapes::torus(24, 7.0, 2.6);
         let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         for conn in [Connectivity::Six, Connectivity::TwentySix] {
             let vol = torus();
             let mut g = Graph::new(&vol, cases(conn));
-            let (equator, meridian) = crate::test_rng::torus_equator_and_meridian(&mut g);
+            let (equator, meridian) = crate::surface::search::torus_equator_and_meridian(&mut g);
             let l = HandleLoops {
                 reeb: None,
                 cross: None,

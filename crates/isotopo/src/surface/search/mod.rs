@@ -1372,13 +1372,31 @@ pub(crate) fn walk_contour(g: &Graph, start: Vertex, w: i64) -> Option<Vec<Verte
     }
 }
 
+/// For the unit tests, on `test_shapes::torus(24, 7.0, 2.6)`: its outer equator (the contour
+/// round the hole in plane 11) and the shortest loop crossing it once (a meridian, round the
+/// tube).
+#[cfg(test)]
+pub(crate) fn torus_equator_and_meridian(g: &mut Graph) -> (Vec<Vertex>, Vec<Vertex>) {
+    let start = (12..24)
+        .rev()
+        .map(|x| Vertex {
+            p: [x, 12, 11],
+            axis: 0,
+        })
+        .find(|&v| crate::surface::is_crossing(g.vol, v))
+        .expect("the torus crosses row y 12 of plane 11");
+    let equator = walk_contour(g, start, 11).expect("a contour");
+    let meridian = shortest_odd_loop(g, &equator, &Everywhere, usize::MAX).expect("a meridian");
+    (equator, meridian)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::grid::{Frame, MaskVolume};
     use crate::topology::cases::{cases, Connectivity};
 
-    use crate::test_rng::torus;
+    use crate::test_shapes::torus;
 
     /// The contour in plane `w` through the first crossing found along +x from the centre line.
     fn contour_from(g: &mut Graph, w: i64, start_x: i64, y: i64) -> Vec<Vertex> {
