@@ -504,4 +504,14 @@ fn each_stage_reports_the_steps_it_announced() {
     for (stage, total, done) in &seen {
         assert_eq!(done, total, "{stage}");
     }
+    // The streamed analysis (the sweep handing over each step's handles) too.
+    let stages = Stages::default();
+    isotopo::analyze_streamed(src(), &analyze, &stages).unwrap();
+    let seen = stages.0.into_inner().unwrap();
+    let names: Vec<&str> = seen.iter().map(|s| s.0.as_str()).collect();
+    assert_eq!(names, ["classify", "sweep", "loops"], "{seen:?}");
+    assert_eq!(seen[1].1, nz + 1, "{seen:?}");
+    for (stage, total, done) in &seen {
+        assert_eq!(done, total, "streamed: {stage}");
+    }
 }
