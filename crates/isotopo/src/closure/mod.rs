@@ -241,9 +241,10 @@ fn only_in(a: &[(PieceKey, i64)], b: &[(PieceKey, i64)]) -> (Vec<Vertex>, i64) {
     (verts, chi4)
 }
 
-/// The cubes within two of a loop's vertices, and a box: where the two sides of a wall are
-/// likely joined. A wall across one loop of a handle cuts the handle's other loop once, so the
-/// rest of that loop joins the wall's two sides.
+/// Cubes round a loop's vertices ([`Tube::thin`]: the eight that hold each; [`Tube::new`]:
+/// those within two), and a box: where the two sides of a wall are likely joined. A wall
+/// across one loop of a handle cuts the handle's other loop once, so the rest of that loop
+/// joins the wall's two sides.
 ///
 /// ```text
 ///        wall
@@ -326,8 +327,9 @@ impl Region for Tube<'_> {
 }
 
 /// Is every one of `others` on the same surface as `from`? Searched near first, then along the
-/// handle's other loop (in its own cubes, then within two of it); then from both ends with budgets growing fourfold, so a piece on a small
-/// separate surface is told apart at the cost of that small surface, not of the large one.
+/// handle's other loop (in its own cubes, then within two of it); then from both ends with
+/// budgets growing fourfold, so a piece on a small separate surface is told apart at the cost
+/// of that small surface, not of the large one.
 /// (A path found within a region is a path on the surface, so only "no" needs the whole search.)
 fn joined(
     g: &mut Graph,
@@ -466,8 +468,8 @@ pub fn close(
     let hi = cubes.iter().fold([i64::MIN; 3], |m, q| {
         [m[0].max(q[0]), m[1].max(q[1]), m[2].max(q[2])]
     });
-    let near = InBox::cubes(lo.map(|x| x - 2), hi.map(|x| x + 2));
     let (lo2, hi2) = (lo.map(|x| x - 2), hi.map(|x| x + 2));
+    let near = InBox::cubes(lo2, hi2);
     let along = [Tube::thin(partner, lo2, hi2), Tube::new(partner, lo2, hi2)];
     for q in &changed {
         vol.set(q[0] as usize, q[1] as usize, q[2] as usize, target);
