@@ -1042,6 +1042,42 @@ mod tests {
         vol
     }
 
+    /// A sample flipped back after a pass (`trim_walls`) forgets the lasting measurements whose
+    /// reach comes within one sample of it, on either side. The reach of a loop through the x
+    /// edge at the origin, searched below 6, is the blocks of 8 samples within 7 of it: x from
+    /// -8 to 15.
+    #[test]
+    fn a_flip_forgets_the_measurements_reaching_next_to_it() {
+        let opts = SimplifyOptions::default();
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let lp = Loop {
+            vertices: vec![crate::surface::Vertex {
+                p: [0, 0, 0],
+                axis: 0,
+            }],
+            points: Vec::new(),
+            length: 4,
+            length_mm: 4.0,
+            encloses: crate::loops::Encloses::Void,
+        };
+        let measured = HandleLoops {
+            reeb: Some(lp),
+            exact: true,
+            ..HandleLoops::default()
+        };
+        let limits = Limits {
+            below: 6.0,
+            ..Limits::NONE
+        };
+        for (x, forgotten) in [(16, true), (17, false), (-9, true), (-10, false)] {
+            let mut run = Run::new(&opts, &affine, &crate::progress::NoProgress);
+            run.lasting.offer(7, &measured, limits);
+            assert!(run.lasting.get(7).is_some());
+            run.forget_near_samples([[x, 0, 0]].into_iter());
+            assert_eq!(run.lasting.get(7).is_none(), forgotten, "flip at x = {x}");
+        }
+    }
+
     /// The pass limit: passes stop at it, even though the last closed something, and the
     /// result is then not certified; one pass more and the pass closing nothing certifies the
     /// same volume.
