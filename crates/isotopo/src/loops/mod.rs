@@ -2953,7 +2953,8 @@ mod tests {
     /// the swept part of the surface (no loop there crossing the Reeb loop is shorter than the
     /// cross loop, or none crossing the cross loop is shorter than the Reeb loop), the Reeb
     /// loop lies there (it does not drift onto a handle above the sweep), and the measurement
-    /// is not said to be exact.
+    /// is not said to be exact; the Reeb loop is no longer than the loop round the handle's mini
+    /// cycle it started from.
     #[test]
     fn an_intra_ribbon_pair_refined_from_any_loop_ends_locally_shortest() {
         let limits = Limits {
@@ -2975,6 +2976,17 @@ mod tests {
                     panic!("n {n} {conn:?}: handle at {at:?} has no pair");
                 };
                 let (a, b) = (&a.vertices, &b.vertices);
+                // The pair starts from the loop round the handle's mini cycle, or a shorter
+                // one crossing `Q1`, and only gets shorter.
+                let p = mini_volume_loop(h, conn, &vol, &mut cache.mini_rows)
+                    .or_else(|| ribbon_loop(&mut g, &mut cache, h))
+                    .unwrap();
+                assert!(
+                    a.len() <= p.len(),
+                    "n {n} {conn:?}: {} > {}",
+                    a.len(),
+                    p.len()
+                );
                 let within = refined_within(h, limits);
                 let shorter = |g: &mut Graph, x: &[Vertex], than: usize| {
                     let r = odd_loop(g, x, &within, than);
