@@ -53,7 +53,7 @@ pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
 use plan::{plan, wall_near_loop};
 use removal::removal;
 use walls::{close_handle, Refused};
-use write::final_edits;
+use write::{changed_sides, final_edits};
 pub(crate) use write::{write_edited, SliceEditor};
 pub use write::{WallValues, Written};
 
@@ -371,6 +371,10 @@ pub struct StageSeconds {
 /// How many full sweeps may run; the last must close nothing.
 const MAX_PASSES: usize = 8;
 
+/// How many rounds of opening handles and taking back those no pass closed may run (see
+/// `Run::passes_until_done`); each has its own [`MAX_PASSES`].
+const MAX_ROUNDS: usize = 4;
+
 /// After the last allowed pass closed something, its measurements may be stale: a handle kept
 /// for its size that measured below tau says so.
 fn mark_stale(kept: &mut [(i64, Kept)], opts: &SimplifyOptions) {
@@ -483,7 +487,7 @@ struct Run<'a> {
     /// [`crate::compose::ComposeOptions::open_handles`]): no wall flips them back, so the handle
     /// is closed elsewhere and the face it went through stays mended.
     locked: FastMap<[i64; 3], ()>,
-    /// Whether the well-composed step may still open handles (not once one was taken back).
+    /// Whether the well-composed step may open handles (not right after one was taken back).
     opening: bool,
     lasting: Lasting,
     rewinds: usize,
@@ -530,11 +534,28 @@ impl<'a> Run<'a> {
     /// no pass could close (its loops at least tau, every wall refused) is taken back at the
     /// end, and the passes run again without opening any: the face it went through is left
     /// (see [`crate::compose::ComposeOptions::open_handles`]).
+    ///
+    /// Taking back and closing change the faces left, so a face no first opening met may now
+    /// be mended by one: the step, opening handles again, and the passes then run in rounds
+    /// until a round ends where it began (or [`MAX_ROUNDS`]). The result is then its own fixed
+    /// point: simplify run again on it, which starts with such a round, changes nothing.
     fn passes_until_done(&mut self, vol: &mut MaskVolume) -> Result<()> {
-        self.passes_while_changing(vol)?;
-        if !self.kept.is_empty() && self.take_back_opened(vol) > 0 {
+        let mut swept = false;
+        for round in 1..=MAX_ROUNDS {
+            let began = changed_sides(vol, &self.original);
+            self.opening = true;
+            let settled = self.passes_while_changing(vol, swept)?;
+            if !settled || self.kept.is_empty() || self.take_back_opened(vol) == 0 {
+                return Ok(());
+            }
             self.opening = false;
-            self.passes_while_changing(vol)?;
+            swept = self.passes_while_changing(vol, false)?;
+            if !swept || changed_sides(vol, &self.original) == began {
+                return Ok(());
+            }
+            self.progress.trace(format_args!(
+                "round {round} changed the volume: opening handles again"
+            ));
         }
         Ok(())
     }
@@ -559,13 +580,21 @@ impl<'a> Run<'a> {
         taken.len()
     }
 
-    /// [`Run::passes_until_done`] without taking back.
-    fn passes_while_changing(&mut self, vol: &mut MaskVolume) -> Result<()> {
+    /// [`Run::passes_until_done`] without taking back. `swept`: the volume is as the last pass
+    /// left it (that pass closed nothing), so the first pass is not run again. Returns whether
+    /// the passes settled (false: the pass limit was reached).
+    fn passes_while_changing(&mut self, vol: &mut MaskVolume, mut swept: bool) -> Result<bool> {
         let first = self.passes;
         while self.passes < first + self.max_passes {
-            let from = self.removed.len();
-            let closed = self.sweep_pass(vol)?;
-            self.trim_walls(vol, from);
+            let closed = match std::mem::take(&mut swept) {
+                true => 0,
+                false => {
+                    let from = self.removed.len();
+                    let closed = self.sweep_pass(vol)?;
+                    self.trim_walls(vol, from);
+                    closed
+                }
+            };
             // Well-composed after every pass that changed something, so that the last pass (the
             // one that closes nothing) analyses and certifies the volume as it is written. A
             // handle opened needs a pass after it to be closed.
@@ -576,7 +605,7 @@ impl<'a> Run<'a> {
                 0
             };
             if closed == 0 && flipped == 0 {
-                return Ok(());
+                return Ok(true);
             }
         }
         mark_stale(&mut self.kept, &self.opts);
@@ -584,7 +613,7 @@ impl<'a> Run<'a> {
             // The pass limit was reached: the last pass closed something.
             self.certified = Some(false);
         }
-        Ok(())
+        Ok(false)
     }
 
     /// Closes handles below `tau` from now on, at most `budget` more of them.
@@ -910,6 +939,14 @@ impl<'a> Run<'a> {
             open_handles: another && self.opening && self.opts.tau > 0.0 && self.budget.is_none(),
         };
         let c = crate::compose::compose(vol, self.conn, opts, self.progress)?;
+        self.progress.trace(format_args!(
+            "composed after pass {}: {} critical cells before, {} left, {} flipped, opened {:?}",
+            self.passes,
+            c.before.total(),
+            c.left.total(),
+            c.flips.len(),
+            c.opened
+        ));
         self.locked.extend(c.opened.iter().map(|&q| (q, ())));
         let flipped = c.flips.len();
         self.forget_near_samples(c.flips.iter().map(|&(q, _)| q));
@@ -936,7 +973,7 @@ impl<'a> Run<'a> {
     }
 
     fn outcome(self, vol: &mut MaskVolume) -> Outcome {
-        let edits = final_edits(vol, self.original);
+        let edits = final_edits(vol, &self.original);
         let composition = self.composition.map(|(mut c, samples)| {
             let composed: FastMap<[i64; 3], ()> = samples
                 .into_keys()

@@ -12,20 +12,33 @@ use std::path::Path;
 
 /// The samples that end on the other side (`original`: each flipped sample's first side),
 /// in original coordinates, plane by plane (out of core, each plane read once).
-pub(super) fn final_edits(vol: &mut MaskVolume, original: FastMap<[i64; 3], bool>) -> Vec<Edit> {
-    let mut flipped: Vec<([i64; 3], bool)> = original.into_iter().collect();
+pub(super) fn final_edits(vol: &mut MaskVolume, original: &FastMap<[i64; 3], bool>) -> Vec<Edit> {
+    let mut edits: Vec<Edit> = changed_sides(vol, original)
+        .into_iter()
+        .map(|(q, inside)| (vol.frame.to_original_i(q), inside))
+        .collect();
+    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
+    edits
+}
+
+/// The samples of `original` (each flipped sample's first side) now on the other side, with
+/// their side now, in local coordinates by plane, row and column (each plane read once).
+pub(super) fn changed_sides(
+    vol: &mut MaskVolume,
+    original: &FastMap<[i64; 3], bool>,
+) -> Vec<([i64; 3], bool)> {
+    let mut flipped: Vec<([i64; 3], bool)> = original.iter().map(|(&q, &was)| (q, was)).collect();
     flipped.sort_unstable_by_key(|(q, _)| [q[2], q[1], q[0]]);
-    let mut edits: Vec<Edit> = Vec::new();
+    let mut changed = Vec::new();
     for same_plane in flipped.chunk_by(|a, b| a.0[2] == b.0[2]) {
         let plane = vol.plane_once(same_plane[0].0[2]);
         for &(q, was) in same_plane {
             if plane.get(q[0] as isize, q[1] as isize) != was {
-                edits.push((vol.frame.to_original_i(q), !was));
+                changed.push((q, !was));
             }
         }
     }
-    edits.sort_by_key(|(p, _)| [p[2], p[1], p[0]]);
-    edits
+    changed
 }
 
 /// Stored values written for inside and outside samples: the representable values nearest the
