@@ -1013,6 +1013,19 @@ fn a_face_left_once_openings_are_taken_back_is_mended_in_a_later_round() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Two handles found at one step whose cuts lie side by side can find one loop, through both
+/// cuts, as their Reeb loop: their four curves then span only two dimensions, and the
+/// certificate that no loop below tau is left failed (random 18³ noise, tau 5: loops of 13
+/// and 14 edges through two contours of one plane). The second handle's certificate now takes
+/// the walk round its own cycle as well. Every guarantee of `check`, the certificate's included.
+#[test]
+fn two_handles_of_a_step_with_one_loop_are_certified() {
+    let (vol, iso, axis, opts) = larger_random_case(58, 14);
+    if let Err(e) = check("case 58", &vol, iso, axis, &opts) {
+        panic!("{e}");
+    }
+}
+
 /// The guarantees of `check` on larger random volumes (side 24 to 31, finite tau), where
 /// rarer sequences of openings, take-backs and walls happen; slow (minutes), so run on demand:
 /// `ISOTOPO_CASES=200 cargo test --release --test simplify larger -- --ignored` (cases from

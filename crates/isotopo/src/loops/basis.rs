@@ -97,7 +97,7 @@ fn parities(
             let Some(a) = around(vol, cases(conn), u) else {
                 return Ok(None);
             };
-            if !add_crossings(&a, curves, &through[&u.key()], &mut parity) {
+            if !add_crossings(&a, curves, &through[&u.key()], 0, &mut parity) {
                 return Ok(None);
             }
         }
@@ -111,12 +111,14 @@ fn parities(
     }))
 }
 
-/// Adds to `parity` what the curves through `u` (at `places`) cross each other there; false if
-/// a step of one of them from `u` is not an edge of the surface (`a`: u's neighbourhood).
+/// Adds to `parity` what the curves through `u` (at `places`) cross each other there, for the
+/// pairs (c, d), c < d, with d at least `from`; false if a step of one of them from `u` is not
+/// an edge of the surface (`a`: u's neighbourhood).
 fn add_crossings(
     a: &Around,
     curves: &[Vec<Vertex>],
     places: &[(u32, u32)],
+    from: u32,
     parity: &mut FastMap<(u32, u32), bool>,
 ) -> bool {
     // Each place's steps back and on, as positions round u.
@@ -140,7 +142,7 @@ fn add_crossings(
     }
     for &(c, ip, inx) in &steps {
         for (&d, &m) in &left {
-            if c < d {
+            if c < d && d >= from {
                 let crossed = ((m >> ip) ^ (m >> inx)) & 1 == 1;
                 *parity.entry((c, d)).or_default() ^= crossed;
             }
@@ -183,6 +185,112 @@ fn rank_by_group(
         }
     }
     rows_of.values_mut().map(|rows| rank_mod2(rows)).sum()
+}
+
+/// Curves added a few at a time, with how much each addition raises the rank of their
+/// crossing matrix (see [`crossing_rank`]): what the certificates of one sweep step check as
+/// they go. An addition reads the neighbourhoods of its own curves' vertices only (two curves
+/// cross only where both pass), as the surface graph reads them: no window of planes is kept
+/// or let go, so the sweep's is left as it is.
+#[derive(Default)]
+pub struct CurveSet {
+    curves: Vec<Vec<Vertex>>,
+    /// Each vertex's places on the curves, by key: (curve, index).
+    through: FastMap<u64, Vec<(u32, u32)>>,
+    /// Crossing parity of each pair of curves (a, b), a < b, that share a vertex.
+    odd: FastMap<(u32, u32), bool>,
+}
+
+impl CurveSet {
+    /// The curves added.
+    pub fn curves(&self) -> &[Vec<Vertex>] {
+        &self.curves
+    }
+
+    /// Adds `new` and returns how much the rank grew; `None`, and nothing added, if one is not
+    /// a closed walk on the surface of `vol`.
+    pub fn add(
+        &mut self,
+        vol: &MaskVolume,
+        conn: Connectivity,
+        new: &[Vec<Vertex>],
+    ) -> Option<usize> {
+        if new.iter().any(|c| c.len() < 3) {
+            return None;
+        }
+        let from = self.curves.len() as u32;
+        let mut touched: Vec<u64> = Vec::new();
+        for (i, c) in new.iter().enumerate() {
+            for (k, v) in c.iter().enumerate() {
+                let list = self.through.entry(v.key()).or_default();
+                if list.last().is_none_or(|&(c, _)| c < from) {
+                    touched.push(v.key());
+                }
+                list.push((from + i as u32, k as u32));
+            }
+        }
+        self.curves.extend_from_slice(new);
+        let mut odd = FastMap::default();
+        let on_surface = touched.iter().all(|&k| {
+            around(vol, cases(conn), Vertex::from_key(k))
+                .is_some_and(|a| add_crossings(&a, &self.curves, &self.through[&k], from, &mut odd))
+        });
+        if !on_surface {
+            self.curves.truncate(from as usize);
+            for k in touched {
+                let list = self.through.get_mut(&k).expect("a touched vertex");
+                list.retain(|&(c, _)| c < from);
+                if list.is_empty() {
+                    self.through.remove(&k);
+                }
+            }
+            return None;
+        }
+        let (old, added) = self.joined_to(from);
+        let before = rank_of(&old, &[&self.odd]);
+        self.odd.extend(odd);
+        let all: Vec<u32> = old.iter().chain(&added).copied().collect();
+        Some(rank_of(&all, &[&self.odd]) - before)
+    }
+
+    /// The curves before `from` joined by shared vertices to those from `from` on (which can
+    /// cross them), and those.
+    fn joined_to(&self, from: u32) -> (Vec<u32>, Vec<u32>) {
+        let mut seen: FastMap<u32, ()> = FastMap::default();
+        let mut queue: Vec<u32> = (from..self.curves.len() as u32).collect();
+        queue.iter().for_each(|&c| _ = seen.insert(c, ()));
+        let mut at = 0;
+        while at < queue.len() {
+            let c = queue[at] as usize;
+            at += 1;
+            for v in &self.curves[c] {
+                for &(d, _) in &self.through[&v.key()] {
+                    if seen.insert(d, ()).is_none() {
+                        queue.push(d);
+                    }
+                }
+            }
+        }
+        let (mut old, added): (Vec<u32>, Vec<u32>) = queue.into_iter().partition(|&c| c < from);
+        old.sort_unstable();
+        (old, added)
+    }
+}
+
+/// Rank of the crossing matrix of the curves `members`, its odd entries from `maps`.
+fn rank_of(members: &[u32], maps: &[&FastMap<(u32, u32), bool>]) -> usize {
+    let pos: FastMap<u32, usize> = members.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let words = members.len().div_ceil(64);
+    let mut rows = vec![vec![0u64; words]; members.len()];
+    for map in maps {
+        for (&(a, b), &odd) in map.iter() {
+            if let (true, Some(&ka), Some(&kb)) = (odd, pos.get(&a), pos.get(&b)) {
+                rows[ka][kb / 64] |= 1 << (kb % 64);
+                rows[kb][ka / 64] |= 1 << (ka % 64);
+            }
+        }
+    }
+    rank_mod2(&mut rows)
 }
 
 /// Rank over the integers mod 2 of the rows (bit sets), by elimination in place.
@@ -293,6 +401,50 @@ mod tests {
             assert_eq!(crossing_rank(&mut windowed, conn, &broken).unwrap(), None);
         }
         assert!(ranks.iter().any(|&r| r >= 20), "{ranks:?}");
+    }
+
+    /// A curve set's rank grows by what the pairwise oracle's does: on random sponges, each
+    /// handle's basis pair and its two loops added in turn, one or two at a time, and every pair
+    /// added a second time (adding nothing); a curve with a step that is not an edge is refused
+    /// and leaves the set as it was.
+    #[test]
+    fn a_curve_set_grows_in_rank_as_the_pairwise_oracle_does() {
+        let conn = Connectivity::Six;
+        let (mut grew, mut flat) = (0, 0);
+        for seed in 1..=2u64 {
+            let vol = crate::test_rng::sponge(14, 0x5eed_c0de_0f00 ^ seed);
+            let opts = crate::AnalyzeOptions::default();
+            let a = crate::analyze(crate::Source::from(vol), &opts, &NoProgress).expect("analysed");
+            let mut offers: Vec<Vec<Vec<Vertex>>> = Vec::new();
+            for l in &a.loops {
+                let (p, q) = l.basis.clone().expect("curves");
+                offers.push(vec![p.clone(), q.clone()]);
+                let loops = [&l.reeb, &l.cross].into_iter().flatten();
+                offers.extend(loops.map(|x| vec![x.vertices.clone()]));
+                offers.push(vec![p, q]);
+            }
+            let mut set = CurveSet::default();
+            let mut rank = 0;
+            for new in &offers {
+                let with: Vec<Vec<Vertex>> = set.curves().iter().chain(new).cloned().collect();
+                let want = pairwise_rank(&a.masks, &with).expect("on the surface");
+                assert_eq!(
+                    set.add(&a.masks, conn, new),
+                    Some(want - rank),
+                    "seed {seed}"
+                );
+                assert_eq!(set.curves(), &with[..]);
+                *if want > rank { &mut grew } else { &mut flat } += 1;
+                rank = want;
+            }
+            let mut broken = offers[0].clone();
+            broken[0][1].p[2] += 2;
+            let before = set.curves().to_vec();
+            assert_eq!(set.add(&a.masks, conn, &broken), None);
+            assert_eq!(set.curves(), &before[..]);
+            assert_eq!(set.add(&a.masks, conn, &offers[0]), Some(0));
+        }
+        assert!(grew > 10 && flat > 10, "{grew} grew, {flat} did not");
     }
 
     #[test]

@@ -25,7 +25,7 @@ use crate::surface::search::{
     Everywhere, FastMap, Graph, InBox, OddLoop, PieceSet, Region,
 };
 use crate::surface::{PieceRef, Vertex};
-use crate::sweep::{CycleVolume, Handle, NodeKind};
+use crate::sweep::{CycleVolume, Handle, LocatedHandle, NodeKind};
 use crate::topology::cases::{cases, Connectivity};
 use crate::topology::slice::SliceSurfels;
 use crate::volume::Affine;
@@ -598,8 +598,11 @@ fn ribbon_generators_within(
 /// that broke its kept loop beyond mending, and walls elsewhere leave most of its ribbons as
 /// they were (64³ noise at tau inf: 53,000 of 86,000 stretches taken from the cache). The same
 /// path either way, so the same loops.
-fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Option<Vec<Vertex>> {
-    let l = &h.located;
+pub(crate) fn chained_reeb_loop(
+    top: &mut Graph,
+    cache: &mut SliceCache,
+    l: &LocatedHandle,
+) -> Option<Vec<Vertex>> {
     let (cycle, n) = (&l.cycle, l.cycle.len());
     if !matches!(l.volume, CycleVolume::Top)
         || l.cut.len() < 2
@@ -628,7 +631,7 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
         let path = match cache.segment(&key) {
             Some(path) => path,
             None => {
-                let path = ribbon_stretch(top, cache, h, k, cur)?;
+                let path = ribbon_stretch(top, cache, l, k, cur)?;
                 cache.keep_segment(key, &path);
                 path
             }
@@ -654,11 +657,10 @@ fn chained_reeb_loop(top: &mut Graph, cache: &mut SliceCache, h: &Handle) -> Opt
 fn ribbon_stretch(
     top: &mut Graph,
     cache: &mut SliceCache,
-    h: &Handle,
+    l: &LocatedHandle,
     k: usize,
     cur: Vertex,
 ) -> Option<Vec<Vertex>> {
-    let l = &h.located;
     let (cycle, n) = (&l.cycle, l.cycle.len());
     let after = |k: usize| (l.cut_at + k) % n;
     let r = cycle[after(k)];
@@ -916,7 +918,9 @@ fn some_odd_loop(
     curve: &[Vertex],
 ) -> Option<Vec<Vertex>> {
     let is_cut = matches!(h.located.volume, CycleVolume::Top) && curve == h.located.cut;
-    let chained = is_cut.then(|| chained_reeb_loop(top, cache, h)).flatten();
+    let chained = is_cut
+        .then(|| chained_reeb_loop(top, cache, &h.located))
+        .flatten();
     chained.or_else(|| any_odd_loop(top, curve, &Everywhere))
 }
 
@@ -2701,7 +2705,7 @@ mod tests {
                 if !eligible {
                     continue;
                 }
-                let lp = chained_reeb_loop(&mut g, &mut cache, h);
+                let lp = chained_reeb_loop(&mut g, &mut cache, &h.located);
                 let lp = lp.unwrap_or_else(|| panic!("no chained loop round a cycle of {n}"));
                 assert_eq!(crossing_parity(&mut g, &lp, &l.cut), Some(1));
                 let distinct: std::collections::HashSet<Vertex> = lp.iter().copied().collect();
@@ -2736,7 +2740,7 @@ mod tests {
                 let mut g = Graph::new(vol, cases(conn));
                 eligible
                     .iter()
-                    .map(|h| chained_reeb_loop(&mut g, cache, h))
+                    .map(|h| chained_reeb_loop(&mut g, cache, &h.located))
                     .collect()
             };
             let first = walks(&vol, &mut cache);

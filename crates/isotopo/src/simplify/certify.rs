@@ -26,10 +26,19 @@ pub(super) enum Certificate {
     Unsure,
 }
 
+/// What the certificates of one sweep step share: the ribbons whose generators were checked,
+/// and the curves certified so far, whose crossing matrix has full rank.
+#[derive(Default)]
+pub(super) struct StepCurves {
+    ribbons: FastMap<(i64, u32), ()>,
+    curves: loops::basis::CurveSet,
+}
+
 /// The curves that prove a handle has no loop below tau, or a loop below tau found on the way.
 ///
-/// - A Reeb-cycle handle: its cut and the loop round its cycle, from its measurement (no loop
-///   below tau crosses the cut, nor that loop, an odd number of times).
+/// - A Reeb-cycle handle: its cut and the shortest loop crossing it, from its measurement (no
+///   loop below tau crosses the cut, nor that loop, an odd number of times); see
+///   [`reeb_cycle_curves`] for two handles of one step that found the same loop.
 /// - An intra-ribbon handle: its ribbon's homology generators (2 × the ribbon's genus closed
 ///   curves on the surface, shared by the ribbon's handles), each searched for a loop below tau
 ///   crossing it an odd number of times.
@@ -42,15 +51,18 @@ pub(super) fn certify(
     limits: Limits,
     affine: &Affine,
     caches: &mut Caches,
-    ribbons: &mut FastMap<(i64, u32), ()>,
+    step: &mut StepCurves,
 ) -> Certificate {
     let Some((slice, ribbon)) = h.ribbon else {
         return match (&l.basis, l.exact) {
-            (Some((p, q)), true) => Certificate::Curves(vec![p.clone(), q.clone()]),
+            (Some((p, q)), true) => {
+                let pair = vec![p.clone(), q.clone()];
+                reeb_cycle_curves(vol, h, pair, conn, limits, affine, caches, step)
+            }
             _ => Certificate::Unsure,
         };
     };
-    if ribbons.insert((slice, ribbon), ()).is_some() {
+    if step.ribbons.insert((slice, ribbon), ()).is_some() {
         return Certificate::Shared;
     }
     let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut caches.graph));
@@ -59,36 +71,101 @@ pub(super) fn certify(
         else {
             return Certificate::Unsure;
         };
-        let searcher = loops::Searcher {
-            metric: limits.metric,
-            geometry: Geometry {
-                affine,
-                fractions: vol.fractions.as_ref(),
-            },
-        };
+        let searcher = searcher(vol, limits, affine);
         for b in &generators {
-            let found = searcher.odd_loop(&mut g, b, limits.below);
-            match found.found {
-                Some(short) => {
-                    let describe = |x: &[Vertex], p: &[Vertex]| {
-                        loops::describe(vol, x, Some(p), &searcher.geometry)
-                    };
-                    return Certificate::Below(HandleLoops {
-                        reeb: Some(describe(&short, b)),
-                        cross: Some(describe(b, &short)),
-                        exact: true,
-                        basis: None,
-                        cut_points: None,
-                    });
-                }
-                None if !found.exact => return Certificate::Unsure,
-                None => {}
+            if let Some(c) = no_odd_loop_below(&searcher, &mut g, vol, b, limits) {
+                return c;
             }
         }
+        step.curves.add(vol, conn, &generators);
         Certificate::Curves(generators)
     })();
     caches.graph = g.into_cache();
     out
+}
+
+/// A Reeb-cycle handle's curves: its cut and the shortest loop crossing it (`pair`), and, if
+/// with them the step's curves span fewer than two more dimensions, the walk round the handle's
+/// own cycle once no loop below tau crosses it. Two handles of one step whose cuts lie side by
+/// side may have found the same loop, through both cuts (random 18³ noise at tau 5: loops of
+/// 13 and 14 edges through two contours of one plane): their four curves then span only two,
+/// and a loop in the class of the two cuts together, which crosses none of them an odd number
+/// of times, is not ruled out. The walk crosses its own cut once and, unlike the loop, not the
+/// other's. Any curve no loop below tau crosses oddly may join the certificate, which asks only
+/// that the curves span the surface's homology: a curve more never lowers the rank.
+#[allow(clippy::too_many_arguments)]
+fn reeb_cycle_curves(
+    vol: &MaskVolume,
+    h: &LocatedHandle,
+    mut pair: Vec<Vec<Vertex>>,
+    conn: Connectivity,
+    limits: Limits,
+    affine: &Affine,
+    caches: &mut Caches,
+    step: &mut StepCurves,
+) -> Certificate {
+    if step
+        .curves
+        .add(vol, conn, &pair)
+        .is_none_or(|grew| grew == 2)
+    {
+        return Certificate::Curves(pair);
+    }
+    let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut caches.graph));
+    let walk = loops::chained_reeb_loop(&mut g, &mut caches.slices, h);
+    let searcher = searcher(vol, limits, affine);
+    let below = walk
+        .as_ref()
+        .and_then(|w| no_odd_loop_below(&searcher, &mut g, vol, w, limits));
+    caches.graph = g.into_cache();
+    match (walk, below) {
+        (_, Some(Certificate::Below(short))) => Certificate::Below(short),
+        (Some(walk), None) => {
+            step.curves.add(vol, conn, std::slice::from_ref(&walk));
+            pair.push(walk);
+            Certificate::Curves(pair)
+        }
+        // No walk, or its search cut short: the pair alone, as measured.
+        _ => Certificate::Curves(pair),
+    }
+}
+
+/// The loop searcher of the certificates.
+fn searcher<'g>(vol: &'g MaskVolume, limits: Limits, affine: &'g Affine) -> loops::Searcher<'g> {
+    loops::Searcher {
+        metric: limits.metric,
+        geometry: Geometry {
+            affine,
+            fractions: vol.fractions.as_ref(),
+        },
+    }
+}
+
+/// `None` when no loop below tau crosses `b` an odd number of times; else what to do: close
+/// the loop found (and `b`, the curve it crosses once, as its partner), or nothing is proven.
+fn no_odd_loop_below(
+    searcher: &loops::Searcher,
+    g: &mut Graph,
+    vol: &MaskVolume,
+    b: &[Vertex],
+    limits: Limits,
+) -> Option<Certificate> {
+    let found = searcher.odd_loop(g, b, limits.below);
+    match found.found {
+        Some(short) => {
+            let describe =
+                |x: &[Vertex], p: &[Vertex]| loops::describe(vol, x, Some(p), &searcher.geometry);
+            Some(Certificate::Below(HandleLoops {
+                reeb: Some(describe(&short, b)),
+                cross: Some(describe(b, &short)),
+                exact: true,
+                basis: None,
+                cut_points: None,
+            }))
+        }
+        None if !found.exact => Some(Certificate::Unsure),
+        None => None,
+    }
 }
 
 /// The certificate of the last pass: every handle kept for its size, and the crossing matrix of
@@ -187,7 +264,7 @@ mod tests {
                 if let Some(b) = budgets {
                     caches.graph.budgets = b;
                 }
-                let mut ribbons = FastMap::default();
+                let mut step = StepCurves::default();
                 match certify(
                     &a.masks,
                     &h.located,
@@ -196,7 +273,7 @@ mod tests {
                     limits,
                     &affine,
                     &mut caches,
-                    &mut ribbons,
+                    &mut step,
                 ) {
                     Certificate::Curves(_) => curves += 1,
                     Certificate::Unsure => unsure += 1,
@@ -213,5 +290,61 @@ mod tests {
         let (curves, unsure, below) = certified(Some(tiny));
         assert_eq!(curves, 0, "{unsure} unsure, {below} below tau");
         assert!(unsure > 50, "{unsure} unsure, {below} below tau"); // measured 97 and 0
+    }
+
+    /// A Reeb-cycle handle whose pair adds too little to its step's curves (here: the step
+    /// holds the same pair already, as when two handles of a step found one loop) gets the walk
+    /// round its cycle as well, a curve crossing its cut once; with a fresh step, its pair
+    /// alone. On a sponge's Reeb-cycle handles, with a tau below which the sponge has no loop
+    /// (at 4, a loop of 3 edges of another handle crosses a walk).
+    #[test]
+    fn a_pair_adding_too_little_to_its_step_gets_the_walk_round_the_cycle_too() {
+        let sponge = crate::test_rng::sponge(20, 0x2545_f491_4f6c_dd1d);
+        let opts = crate::AnalyzeOptions::default();
+        let a = crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap();
+        let conn = Connectivity::Six;
+        let limits = Limits {
+            below: 3.0,
+            ..Limits::NONE
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let mut g = Graph::new(&a.masks, cases(conn));
+        let mut walks = 0;
+        for (h, l) in a.report.handles.iter().zip(&a.loops) {
+            let (Some((p, q)), None, true) = (&l.basis, h.located.ribbon, l.exact) else {
+                continue;
+            };
+            let certified = |step: &mut StepCurves| {
+                let mut caches = Caches::new(conn);
+                let c = certify(
+                    &a.masks,
+                    &h.located,
+                    l,
+                    conn,
+                    limits,
+                    &affine,
+                    &mut caches,
+                    step,
+                );
+                match c {
+                    Certificate::Curves(c) => c,
+                    _ => panic!("handle {}: no curves", h.id),
+                }
+            };
+            let pair = vec![p.clone(), q.clone()];
+            assert_eq!(certified(&mut StepCurves::default()), pair);
+            let mut step = StepCurves::default();
+            assert_eq!(step.curves.add(&a.masks, conn, &pair), Some(2));
+            let c = certified(&mut step);
+            assert_eq!(c.len(), 3, "handle {}", h.id);
+            assert_eq!(c[..2], pair[..]);
+            assert_eq!(
+                crate::surface::search::crossing_parity(&mut g, p, &c[2]),
+                Some(1)
+            );
+            assert_eq!(step.curves.curves().len(), 5);
+            walks += 1;
+        }
+        assert!(walks > 5, "{walks} handles");
     }
 }

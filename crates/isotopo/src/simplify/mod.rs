@@ -47,7 +47,7 @@ mod removal;
 mod walls;
 mod write;
 
-use certify::{certificate_holds, certify, Certificate};
+use certify::{certificate_holds, certify, Certificate, StepCurves};
 use measure::{memo_key, Caches, Lasting};
 pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
 use plan::{plan, wall_near_loop};
@@ -749,8 +749,8 @@ impl<'a> Run<'a> {
                 .unwrap_or(f64::INFINITY)
         };
         order.sort_by(|&a, &b| size(a).total_cmp(&size(b)));
-        // Ribbons of this step whose generators were checked.
-        let mut ribbons: FastMap<(i64, u32), ()> = FastMap::default();
+        // What this step's certificates share.
+        let mut step = StepCurves::default();
         let mut walls: Vec<BBox> = Vec::new();
         for i in order {
             let at = Found {
@@ -758,7 +758,7 @@ impl<'a> Run<'a> {
                 loops: &measured[i],
                 slice: s,
             };
-            if let Some(wall) = self.settle(vol, caches, &mut ribbons, &walls, at) {
+            if let Some(wall) = self.settle(vol, caches, &mut step, &walls, at) {
                 walls.push(wall);
             }
         }
@@ -770,7 +770,7 @@ impl<'a> Run<'a> {
         &mut self,
         vol: &mut MaskVolume,
         caches: &mut Caches,
-        ribbons: &mut FastMap<(i64, u32), ()>,
+        step: &mut StepCurves,
         walls: &[BBox],
         at: Found,
     ) -> Option<BBox> {
@@ -779,7 +779,7 @@ impl<'a> Run<'a> {
             slice: s,
             ..
         } = at;
-        let l = self.loops_to_close(vol, caches, ribbons, at)?;
+        let l = self.loops_to_close(vol, caches, step, at)?;
         let candidates = plan(&l, &self.opts).expect("a loop below tau");
         // Measured before this step's walls: if one landed near, measure again after the
         // rewind.
@@ -829,7 +829,7 @@ impl<'a> Run<'a> {
         &mut self,
         vol: &MaskVolume,
         caches: &mut Caches,
-        ribbons: &mut FastMap<(i64, u32), ()>,
+        step: &mut StepCurves,
         at: Found<'l>,
     ) -> Option<Cow<'l, HandleLoops>> {
         let (h, l, s) = (at.handle, at.loops, at.slice);
@@ -837,7 +837,7 @@ impl<'a> Run<'a> {
             Ok(_) => return Some(Cow::Borrowed(l)),
             Err(KeepReason::Size) if self.certifying => {
                 let (conn, limits, affine) = (self.conn, self.limits, self.affine);
-                match certify(vol, h, l, conn, limits, affine, caches, ribbons) {
+                match certify(vol, h, l, conn, limits, affine, caches, step) {
                     Certificate::Curves(curves) => {
                         self.basis.push((s, curves));
                         KeepReason::Size
