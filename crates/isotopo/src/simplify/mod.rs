@@ -538,21 +538,50 @@ impl<'a> Run<'a> {
     /// Taking back and closing change the faces left, so a face no first opening met may now
     /// be mended by one: the step, opening handles again, and the passes then run in rounds
     /// until a round ends where it began (or [`MAX_ROUNDS`]). The result is then its own fixed
-    /// point: simplify run again on it, which starts with such a round, changes nothing.
+    /// point: simplify run again on it, which starts with such a round, changes nothing. A
+    /// round whose step opens its way back to where the last round's openings settled would
+    /// repeat that round (the same volume, the same passes): its step is undone and the round
+    /// skipped, which spares the two passes that would find so.
     fn passes_until_done(&mut self, vol: &mut MaskVolume) -> Result<()> {
-        let mut swept = false;
+        // The samples changed where the last round's openings settled: a round whose step
+        // opens its way back there would repeat that round, and end where it begins.
+        let mut opened_at: Option<Vec<([i64; 3], bool)>> = None;
         for round in 1..=MAX_ROUNDS {
             let began = changed_sides(vol, &self.original);
             self.opening = true;
-            let settled = self.passes_while_changing(vol, swept)?;
-            if !settled || self.kept.is_empty() || self.take_back_opened(vol) == 0 {
+            let settled = match opened_at.take() {
+                None => self.passes_while_changing(vol)?,
+                // The volume is as the last pass left it: the round starts with the step.
+                Some(there) => {
+                    let c = self.composed(vol, true)?;
+                    let known = c.flips.iter().all(|(q, _)| self.original.contains_key(q));
+                    if known && changed_sides(vol, &self.original) == there {
+                        for &(q, inside) in &c.flips {
+                            vol.set(q[0] as usize, q[1] as usize, q[2] as usize, !inside);
+                        }
+                        self.progress.trace(format_args!(
+                            "round {round} would repeat the last: its step taken back, done"
+                        ));
+                        return Ok(());
+                    }
+                    if self.record(c) == 0 {
+                        return Ok(());
+                    }
+                    self.passes_while_changing(vol)?
+                }
+            };
+            if !settled || self.kept.is_empty() {
+                return Ok(());
+            }
+            let opened = changed_sides(vol, &self.original);
+            if self.take_back_opened(vol) == 0 {
                 return Ok(());
             }
             self.opening = false;
-            swept = self.passes_while_changing(vol, false)?;
-            if !swept || changed_sides(vol, &self.original) == began {
+            if !self.passes_while_changing(vol)? || changed_sides(vol, &self.original) == began {
                 return Ok(());
             }
+            opened_at = Some(opened);
             self.progress.trace(format_args!(
                 "round {round} changed the volume: opening handles again"
             ));
@@ -580,21 +609,14 @@ impl<'a> Run<'a> {
         taken.len()
     }
 
-    /// [`Run::passes_until_done`] without taking back. `swept`: the volume is as the last pass
-    /// left it (that pass closed nothing), so the first pass is not run again. Returns whether
-    /// the passes settled (false: the pass limit was reached).
-    fn passes_while_changing(&mut self, vol: &mut MaskVolume, mut swept: bool) -> Result<bool> {
+    /// [`Run::passes_until_done`] without taking back. Returns whether the passes settled
+    /// (false: the pass limit was reached).
+    fn passes_while_changing(&mut self, vol: &mut MaskVolume) -> Result<bool> {
         let first = self.passes;
         while self.passes < first + self.max_passes {
-            let closed = match std::mem::take(&mut swept) {
-                true => 0,
-                false => {
-                    let from = self.removed.len();
-                    let closed = self.sweep_pass(vol)?;
-                    self.trim_walls(vol, from);
-                    closed
-                }
-            };
+            let from = self.removed.len();
+            let closed = self.sweep_pass(vol)?;
+            self.trim_walls(vol, from);
             // Well-composed after every pass that changed something, so that the last pass (the
             // one that closes nothing) analyses and certifies the volume as it is written. A
             // handle opened needs a pass after it to be closed.
@@ -929,6 +951,12 @@ impl<'a> Run<'a> {
     /// and `another` pass follows to close it; the sample is then locked (and taken back, to
     /// its side in the input, if no pass closes that handle).
     fn compose(&mut self, vol: &mut MaskVolume, another: bool) -> Result<usize> {
+        let c = self.composed(vol, another)?;
+        Ok(self.record(c))
+    }
+
+    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]).
+    fn composed(&self, vol: &mut MaskVolume, another: bool) -> Result<crate::compose::Composition> {
         let only = match self.opts.mode {
             Mode::Both => None,
             Mode::FillOnly => Some(true),
@@ -947,6 +975,11 @@ impl<'a> Run<'a> {
             c.flips.len(),
             c.opened
         ));
+        Ok(c)
+    }
+
+    /// Keeps what the step did (see [`Run::compose`]); returns how many samples it flipped.
+    fn record(&mut self, c: crate::compose::Composition) -> usize {
         self.locked.extend(c.opened.iter().map(|&q| (q, ())));
         let flipped = c.flips.len();
         self.forget_near_samples(c.flips.iter().map(|&(q, _)| q));
@@ -969,7 +1002,7 @@ impl<'a> Run<'a> {
         total.swaps += c.swaps;
         total.rewrites += c.rewrites;
         total.opened.extend(c.opened);
-        Ok(flipped)
+        flipped
     }
 
     fn outcome(self, vol: &mut MaskVolume) -> Outcome {
