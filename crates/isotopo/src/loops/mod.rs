@@ -275,13 +275,11 @@ pub struct SliceCache {
     /// of the cut's vertices: the sweep meets the same cut again after every wall near the
     /// long loop round its tall cycle (64³ noise at tau inf: 6,515 cheap loops looked for, of
     /// 1,218 cuts).
-    cheap: FastMap<u64, Vec<u64>>,
-    cheap_vertices: usize,
+    cheap: KeptPaths<u64>,
     /// The stretches of [`chained_reeb_loop`]'s walks, each through one ribbon from a vertex to
     /// a contour, as vertex keys: a tall cycle's walk is found afresh after a wall broke it
     /// beyond mending, and the walls since then touched few of its ribbons.
-    segments: FastMap<SegmentKey, Vec<u64>>,
-    segment_vertices: usize,
+    segments: KeptPaths<SegmentKey>,
     /// Use counter: the stamp of the latest `ensure`.
     clock: u64,
     /// Heap bytes of the slices kept, and how many they may take between handles (see
@@ -305,6 +303,55 @@ struct CacheLimits {
 
 /// Long races a cache remembers (forgotten all at once beyond).
 const MAX_RACED: usize = 1 << 12;
+
+/// Paths kept by key (as their vertices' keys), with the count of vertices held: all forgotten
+/// at once when keeping one more would pass the limit.
+struct KeptPaths<K> {
+    paths: FastMap<K, Vec<u64>>,
+    vertices: usize,
+}
+
+impl<K> Default for KeptPaths<K> {
+    fn default() -> KeptPaths<K> {
+        KeptPaths {
+            paths: FastMap::default(),
+            vertices: 0,
+        }
+    }
+}
+
+impl<K: std::hash::Hash + Eq> KeptPaths<K> {
+    fn get(&self, key: &K) -> Option<Vec<Vertex>> {
+        let keys = self.paths.get(key)?;
+        Some(keys.iter().map(|&k| Vertex::from_key(k)).collect())
+    }
+
+    /// Keeps `path` under `key`, in place of any kept before.
+    fn keep(&mut self, key: K, path: &[Vertex], limit: usize) {
+        if self.vertices + path.len() > limit {
+            self.paths.clear();
+            self.vertices = 0;
+        }
+        self.vertices += path.len();
+        let old = self
+            .paths
+            .insert(key, path.iter().map(Vertex::key).collect());
+        self.vertices -= old.map_or(0, |o| o.len());
+    }
+
+    /// Forgets the paths whose keys fail `keep`.
+    fn retain(&mut self, mut keep: impl FnMut(&K) -> bool) {
+        let mut forgotten = 0;
+        self.paths.retain(|k, p| {
+            let kept = keep(k);
+            if !kept {
+                forgotten += p.len();
+            }
+            kept
+        });
+        self.vertices -= forgotten;
+    }
+}
 
 /// A stretch of a chained walk: the slice and ribbon it goes through, the vertex it starts
 /// from, and what it ends on (a contour: its plane and the start of its walk; the cut:
@@ -345,10 +392,8 @@ impl SliceCache {
             mini_rows: MiniRows::default(),
             ribbon_start: None,
             raced: FastMap::default(),
-            cheap: FastMap::default(),
-            cheap_vertices: 0,
-            segments: FastMap::default(),
-            segment_vertices: 0,
+            cheap: KeptPaths::default(),
+            segments: KeptPaths::default(),
             clock: 0,
             bytes: 0,
             budget: SLICE_CACHE_BYTES,
@@ -431,38 +476,22 @@ impl SliceCache {
 
     /// The cheap loop kept for the cut of key `key` (see [`cheap_odd_loop`]).
     fn kept_cheap(&self, key: u64) -> Option<Vec<Vertex>> {
-        let keys = self.cheap.get(&key)?;
-        Some(keys.iter().map(|&k| Vertex::from_key(k)).collect())
+        self.cheap.get(&key)
     }
 
     /// Keeps a cheap loop for the cut of key `key`, in place of any kept before.
     fn keep_cheap(&mut self, key: u64, lp: &[Vertex]) {
-        if self.cheap_vertices + lp.len() > self.limits.cheap_vertices {
-            self.cheap.clear();
-            self.cheap_vertices = 0;
-        }
-        self.cheap_vertices += lp.len();
-        let old = self.cheap.insert(key, lp.iter().map(Vertex::key).collect());
-        self.cheap_vertices -= old.map_or(0, |o| o.len());
+        self.cheap.keep(key, lp, self.limits.cheap_vertices);
     }
 
     /// The stretch of a walk kept under `key` (see [`chained_reeb_loop`]).
     fn segment(&self, key: &SegmentKey) -> Option<Vec<Vertex>> {
-        let keys = self.segments.get(key)?;
-        Some(keys.iter().map(|&k| Vertex::from_key(k)).collect())
+        self.segments.get(key)
     }
 
     /// Keeps a stretch of a walk under `key`.
     fn keep_segment(&mut self, key: SegmentKey, path: &[Vertex]) {
-        if self.segment_vertices + path.len() > self.limits.segment_vertices {
-            self.segments.clear();
-            self.segment_vertices = 0;
-        }
-        self.segment_vertices += path.len();
-        let old = self
-            .segments
-            .insert(key, path.iter().map(Vertex::key).collect());
-        self.segment_vertices -= old.map_or(0, |o| o.len());
+        self.segments.keep(key, path, self.limits.segment_vertices);
     }
 
     /// Forgets the slices with a corner in planes `w0 ..= w1` (after an edit there), the
@@ -470,15 +499,7 @@ impl SliceCache {
     /// slices one plane nearer still: a stretch through slice s steps along edges whose
     /// neighbourhoods take the cubes of slices s - 1 to s + 1, corners in planes s - 1 to s + 2.
     pub fn invalidate(&mut self, w0: i64, w1: i64) {
-        let mut forgotten = 0;
-        self.segments.retain(|&(s, ..), p| {
-            let keep = s + 2 < w0 || s - 1 > w1;
-            if !keep {
-                forgotten += p.len();
-            }
-            keep
-        });
-        self.segment_vertices -= forgotten;
+        self.segments.retain(|&(s, ..)| s + 2 < w0 || s - 1 > w1);
         let mut forgotten = 0;
         self.contours.retain(|&(w, _), c| {
             let keep = w + 1 < w0 || w > w1 + 1;
@@ -2409,30 +2430,37 @@ mod tests {
         };
         let mut cache = SliceCache::new(conn);
         cache.limits.cheap_vertices = 20;
-        let held = |cache: &SliceCache| cache.cheap.values().map(|c| c.len()).sum::<usize>();
+        let held = |cache: &SliceCache| cache.cheap.paths.values().map(|c| c.len()).sum::<usize>();
         // 6 + 8, then 4 in place of 6 (12 held), 8 (20: at the limit, all kept), then 9 and
         // 20 each forget all.
         let mut kept = Vec::new();
         for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 8), (4, 9), (5, 20)] {
             cache.keep_cheap(key, &lp(n));
-            assert_eq!(cache.cheap_vertices, held(&cache), "key {key}");
-            assert!(cache.cheap_vertices <= 20, "key {key}");
+            assert_eq!(cache.cheap.vertices, held(&cache), "key {key}");
+            assert!(cache.cheap.vertices <= 20, "key {key}");
             assert_eq!(cache.kept_cheap(key), Some(lp(n)), "key {key}");
-            kept.push(cache.cheap.len());
+            kept.push(cache.cheap.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
         // The walks' stretches, the same way.
         let mut cache = SliceCache::new(conn);
         cache.limits.segment_vertices = 20;
-        let held = |cache: &SliceCache| cache.segments.values().map(|c| c.len()).sum::<usize>();
+        let held = |cache: &SliceCache| {
+            cache
+                .segments
+                .paths
+                .values()
+                .map(|c| c.len())
+                .sum::<usize>()
+        };
         let mut kept = Vec::new();
         for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 8), (4, 9), (5, 20)] {
             let key = (key, 0, 0, (0, 0));
             cache.keep_segment(key, &lp(n));
-            assert_eq!(cache.segment_vertices, held(&cache), "key {key:?}");
-            assert!(cache.segment_vertices <= 20, "key {key:?}");
+            assert_eq!(cache.segments.vertices, held(&cache), "key {key:?}");
+            assert!(cache.segments.vertices <= 20, "key {key:?}");
             assert_eq!(cache.segment(&key), Some(lp(n)), "key {key:?}");
-            kept.push(cache.segments.len());
+            kept.push(cache.segments.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
     }
@@ -2744,11 +2772,11 @@ mod tests {
                     .collect()
             };
             let first = walks(&vol, &mut cache);
-            let kept = cache.segments.len();
+            let kept = cache.segments.paths.len();
             assert!(kept > 20, "{kept} stretches kept");
             assert_eq!(walks(&vol, &mut cache), first, "walked again");
             assert_eq!(
-                cache.segments.len(),
+                cache.segments.paths.len(),
                 kept,
                 "every stretch served by the cache"
             );
@@ -2762,7 +2790,7 @@ mod tests {
             }
             cache.invalidate(11, 12);
             assert!(
-                cache.segments.len() < kept,
+                cache.segments.paths.len() < kept,
                 "stretches near the edit forgotten"
             );
             let fresh = walks(&vol, &mut SliceCache::new(conn));
@@ -2791,13 +2819,13 @@ mod tests {
         }
         cache.invalidate(6, 8);
         let left: Vec<i64> = {
-            let mut v: Vec<i64> = cache.segments.keys().map(|k| k.0).collect();
+            let mut v: Vec<i64> = cache.segments.paths.keys().map(|k| k.0).collect();
             v.sort_unstable();
             v
         };
         assert_eq!(left, [0, 1, 2, 3, 10, 11, 12, 13, 14]);
-        let held: usize = cache.segments.values().map(|p| p.len()).sum();
-        assert_eq!(cache.segment_vertices, held);
+        let held: usize = cache.segments.paths.values().map(|p| p.len()).sum();
+        assert_eq!(cache.segments.vertices, held);
         assert_eq!(cache.segment(&(3, 0, 7, (1, 2))), Some(path(4)));
         assert_eq!(cache.segment(&(3, 1, 7, (1, 2))), None, "another ribbon");
     }
