@@ -546,8 +546,9 @@ impl<'a> Run<'a> {
         // The samples changed where the last round's openings settled: a round whose step
         // opens its way back there would repeat that round, and end where it begins.
         let mut opened_at: Option<Vec<([i64; 3], bool)>> = None;
+        // Each round begins where the last ended.
+        let mut began = changed_sides(vol, &self.original);
         for round in 1..=MAX_ROUNDS {
-            let began = changed_sides(vol, &self.original);
             self.opening = true;
             let settled = match opened_at.take() {
                 None => self.passes_while_changing(vol)?,
@@ -578,9 +579,14 @@ impl<'a> Run<'a> {
                 return Ok(());
             }
             self.opening = false;
-            if !self.passes_while_changing(vol)? || changed_sides(vol, &self.original) == began {
+            if !self.passes_while_changing(vol)? {
                 return Ok(());
             }
+            let ended = changed_sides(vol, &self.original);
+            if ended == began {
+                return Ok(());
+            }
+            began = ended;
             opened_at = Some(opened);
             self.progress.trace(format_args!(
                 "round {round} changed the volume: opening handles again"
