@@ -211,6 +211,32 @@ mod tests {
         vec![(0, k)]
     }
 
+    /// The analysed sponge the certificate tests run on: Reeb-cycle and intra-ribbon handles.
+    fn sponge() -> crate::Analysis {
+        let sponge = crate::test_rng::sponge(20, 0x2545_f491_4f6c_dd1d);
+        let opts = crate::AnalyzeOptions::default();
+        crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap()
+    }
+
+    /// Certifies the sponge's handle `i` at connectivity 6 and unit spacing, searching for
+    /// loops shorter than `below`.
+    fn certify_sponge(
+        a: &crate::Analysis,
+        i: usize,
+        below: f64,
+        caches: &mut Caches,
+        step: &mut StepCurves,
+    ) -> Certificate {
+        let limits = Limits {
+            below,
+            ..Limits::NONE
+        };
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let (h, l) = (&a.report.handles[i], &a.loops[i]);
+        let conn = Connectivity::Six;
+        certify(&a.masks, &h.located, l, conn, limits, &affine, caches, step)
+    }
+
     /// A torus's cut and Reeb loop cross once: they certify its one handle. The same curve
     /// twice spans nothing, and a handle kept for another reason than its size is no proof.
     #[test]
@@ -243,38 +269,20 @@ mod tests {
     /// states, none gets curves, and those whose search found no loop are unsure.
     #[test]
     fn a_search_cut_short_proves_nothing() {
-        let n = 20;
-        let sponge = crate::test_rng::sponge(n, 0x2545_f491_4f6c_dd1d);
-        let opts = crate::AnalyzeOptions::default();
-        let a = crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap();
-        let conn = Connectivity::Six;
+        let a = sponge();
         // A small tau: the ribbons' generators have no loop below it to find.
-        let limits = Limits {
-            below: 4.0,
-            ..Limits::NONE
-        };
-        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         let certified = |budgets: Option<crate::surface::search::Budgets>| {
             let (mut curves, mut unsure, mut below) = (0, 0, 0);
-            for (h, l) in a.report.handles.iter().zip(&a.loops) {
+            for (i, h) in a.report.handles.iter().enumerate() {
                 if h.located.ribbon.is_none() {
                     continue;
                 }
-                let mut caches = Caches::new(conn);
+                let mut caches = Caches::new(Connectivity::Six);
                 if let Some(b) = budgets {
                     caches.graph.budgets = b;
                 }
                 let mut step = StepCurves::default();
-                match certify(
-                    &a.masks,
-                    &h.located,
-                    l,
-                    conn,
-                    limits,
-                    &affine,
-                    &mut caches,
-                    &mut step,
-                ) {
+                match certify_sponge(&a, i, 4.0, &mut caches, &mut step) {
                     Certificate::Curves(_) => curves += 1,
                     Certificate::Unsure => unsure += 1,
                     Certificate::Below(_) => below += 1,
@@ -299,34 +307,17 @@ mod tests {
     /// (at 4, a loop of 3 edges of another handle crosses a walk).
     #[test]
     fn a_pair_adding_too_little_to_its_step_gets_the_walk_round_the_cycle_too() {
-        let sponge = crate::test_rng::sponge(20, 0x2545_f491_4f6c_dd1d);
-        let opts = crate::AnalyzeOptions::default();
-        let a = crate::analyze(crate::Source::from(sponge), &opts, &NoProgress).unwrap();
+        let a = sponge();
         let conn = Connectivity::Six;
-        let limits = Limits {
-            below: 3.0,
-            ..Limits::NONE
-        };
-        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
         let mut g = Graph::new(&a.masks, cases(conn));
         let mut walks = 0;
-        for (h, l) in a.report.handles.iter().zip(&a.loops) {
+        for (i, (h, l)) in a.report.handles.iter().zip(&a.loops).enumerate() {
             let (Some((p, q)), None, true) = (&l.basis, h.located.ribbon, l.exact) else {
                 continue;
             };
             let certified = |step: &mut StepCurves| {
                 let mut caches = Caches::new(conn);
-                let c = certify(
-                    &a.masks,
-                    &h.located,
-                    l,
-                    conn,
-                    limits,
-                    &affine,
-                    &mut caches,
-                    step,
-                );
-                match c {
+                match certify_sponge(&a, i, 3.0, &mut caches, step) {
                     Certificate::Curves(c) => c,
                     _ => panic!("handle {}: no curves", h.id),
                 }
