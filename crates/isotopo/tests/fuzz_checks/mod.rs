@@ -125,7 +125,7 @@ pub fn simplify_case(data: &[u8]) -> Option<(InMemoryVolume, SimplifyOptions)> {
 /// on any valid volume (its own check of the whole result turns a broken guarantee into an
 /// error, which fails here), `--tau inf` with both operations leaves genus 0, a handle is kept
 /// only for a reason the options allow, and simplify run again on its output changes nothing
-/// when the first run removed everything it was asked to.
+/// unless the first run kept a component or cavity.
 pub fn simplify_volume(data: &[u8]) {
     let Some((volume, opts)) = simplify_case(data) else {
         return;
@@ -145,16 +145,10 @@ pub fn simplify_volume(data: &[u8]) {
     if opts.tau.is_infinite() && opts.mode == Mode::Both {
         assert_eq!(done.after.b1, 0, "genus left at tau inf ({opts:?})");
     }
-    // Run again on its output, simplify has nothing left to do, unless the first run reported
-    // something it could not remove (a part or a handle the mode allows no operation for, or
-    // whose every wall was refused): the walls and flips since may have made room for it.
-    let finished = done.outcome.parts.kept.is_empty()
-        && done
-            .outcome
-            .kept
-            .iter()
-            .all(|k| k.reason == KeepReason::Size);
-    if !finished {
+    // Run again on its output, simplify has nothing left to do (its rounds of opening handles
+    // end where they begin), unless the first run kept a component or cavity: the walls and
+    // flips since may have made room to remove it.
+    if !done.outcome.parts.kept.is_empty() {
         return;
     }
     let edited = done.edited().expect("the edited volume");
