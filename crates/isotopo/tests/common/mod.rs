@@ -113,20 +113,34 @@ pub fn run_genus(vol: &InMemoryVolume, iso: f64, conn: Connectivity) -> GenusRep
         .0
 }
 
-/// Inside mask of a volume (value > iso).
 /// The masks of `vol` at `iso` (inside above), planes across `axis`.
 pub fn masks(vol: &InMemoryVolume, iso: f64, conn: Connectivity, axis: Axis) -> MaskVolume {
-    let mut v = vol.clone();
-    MaskVolume::from_reader(&mut v, &opts(iso, conn), axis, None, &NoProgress).unwrap()
+    masks_with(vol, &opts(iso, conn), axis)
 }
 
+/// The masks of `vol` as `surface` defines its inside, planes across `axis`.
+pub fn masks_with(vol: &InMemoryVolume, surface: &SurfaceOptions, axis: Axis) -> MaskVolume {
+    let mut v = vol.clone();
+    MaskVolume::from_reader(&mut v, surface, axis, None, &NoProgress).unwrap()
+}
+
+/// Inside mask of a volume (value > iso), x fastest.
 pub fn mask_of(vol: &InMemoryVolume, iso: f64) -> Vec<bool> {
+    mask_on(vol, iso, Inside::Above)
+}
+
+/// Inside mask of a volume, the inside on the given side of `iso` (ties outside), x fastest.
+pub fn mask_on(vol: &InMemoryVolume, iso: f64, inside: Inside) -> Vec<bool> {
     let [nx, ny, nz] = vol.dims();
     let mut m = Vec::with_capacity(nx * ny * nz);
     for z in 0..nz {
         for y in 0..ny {
             for x in 0..nx {
-                m.push(vol.get(x, y, z) > iso);
+                let v = vol.get(x, y, z);
+                m.push(match inside {
+                    Inside::Above => v > iso,
+                    Inside::Below => v < iso,
+                });
             }
         }
     }
