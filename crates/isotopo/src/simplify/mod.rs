@@ -973,13 +973,16 @@ impl<'a> Run<'a> {
             open_handles: another && self.opening && self.opts.tau > 0.0 && self.budget.is_none(),
         };
         let c = crate::compose::compose(vol, self.conn, opts, self.progress)?;
+        // The first few opened samples locate them; a noisy scan opens thousands.
+        let shown = &c.opened[..c.opened.len().min(8)];
         self.progress.trace(format_args!(
-            "composed after pass {}: {} critical cells before, {} left, {} flipped, opened {:?}",
+            "composed after pass {}: {} critical cells before, {} left, {} flipped, {} opened {shown:?}{}",
             self.passes,
             c.before.total(),
             c.left.total(),
             c.flips.len(),
-            c.opened
+            c.opened.len(),
+            if shown.len() < c.opened.len() { " ..." } else { "" }
         ));
         Ok(c)
     }
