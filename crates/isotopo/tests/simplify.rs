@@ -1073,6 +1073,27 @@ fn two_handles_of_a_step_with_one_loop_are_certified() {
     }
 }
 
+/// The property test below, on a few of its smaller cases, in every run: every option drawn
+/// (tau inf and the inside below the isovalue included), every guarantee of `check`.
+#[test]
+fn random_volumes_with_every_option_drawn_keep_every_guarantee() {
+    let mut failures = Vec::new();
+    let mut drawn = std::collections::HashSet::new();
+    for case in 0..40 {
+        let (vol, iso, axis, opts) = wider_random_case(case, 14);
+        drawn.insert((opts.tau.is_finite(), opts.surface.inside == Inside::Below));
+        if let Err(e) = check(&format!("case {case}"), &vol, iso, axis, &opts) {
+            failures.push(e);
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_eq!(
+        drawn.len(),
+        4,
+        "finite and infinite tau, inside above and below"
+    );
+}
+
 /// The guarantees of `check` on larger random volumes (side 24 to 31, tau finite or inf, the
 /// inside above or below), where rarer sequences of openings, take-backs and walls happen;
 /// slow (minutes), so run on demand:
