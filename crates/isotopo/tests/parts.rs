@@ -190,6 +190,58 @@ fn far_specks_are_deleted_and_a_near_one_bridged() {
     }
 }
 
+/// A bridge touches no other part that goes: under the ball of `ball_and_specks` (its lowest
+/// samples at z = 5), a 2×2×2 cube at z = 0..1 (bridged: 3 samples, deleting it 8) and, beside
+/// the first straight way up from it, a 3×3 plate at z = 3 (9 samples: parts go smallest
+/// first, so the plate goes after the cube). A bridge touching the plate would join it too,
+/// before its own turn; the cube's bridge goes up a column out of the plate's reach (found
+/// first, not after ways the local check refuses), and the plate is bridged by one sample of
+/// its own.
+///
+/// ```text
+///   z = 5  ball ball ball ball          x = 8 ..= 12 at y = 11
+///   z = 3  [plate ] .  (11) (12)        (11), (12): columns a bridge may take
+///   z = 0..1        .  cube cube        the cube's way up (11) touches the plate
+/// ```
+#[test]
+fn a_bridge_touches_no_other_part_that_goes() {
+    let plate: Vec<[usize; 3]> = (0..9).map(|i| [8 + i % 3, 9 + i / 3, 3]).collect();
+    let mut extra = cube_at([11, 11, 0]);
+    extra.extend(&plate);
+    let vol = ball_with(24, 7.0, &extra, None);
+    for conn in BOTH {
+        let (comps, _) = parts_of(&common::mask_of(&vol, 0.0), vol.dims(), conn);
+        assert_eq!(comps.len(), 3, "{conn:?}: {comps:?}");
+        let opts = SimplifyOptions {
+            min_component: Some(10),
+            ..options(conn, 0.0)
+        };
+        let (done, mask) = run(&vol, &opts);
+        assert_eq!(parts_of(&mask, vol.dims(), conn).0.len(), 1, "{conn:?}");
+        let removed = &done.outcome.parts.removed;
+        let bridges: Vec<_> = removed.iter().map(|r| (r.size, r.path.len())).collect();
+        assert_eq!(bridges, [(8, 3), (9, 1)], "{conn:?}: {removed:?}");
+        // Next to the plate under the connectivity's adjacency.
+        let touches = |q: &[i64; 3]| {
+            plate.iter().any(|b| {
+                let d = (0..3).map(|k| (q[k] - b[k] as i64).abs());
+                match conn {
+                    Connectivity::Six => d.sum::<i64>() <= 1,
+                    Connectivity::TwentySix => d.max() <= Some(1),
+                }
+            })
+        };
+        let cube_bridge = &removed[0].path;
+        assert!(
+            !cube_bridge.iter().any(touches),
+            "{conn:?}: the cube's bridge {cube_bridge:?} touches the plate"
+        );
+        // Nor was one offered: the local check refuses a way that joins the plate too (a
+        // search that let it through offered one at 6, two at 26).
+        assert_eq!(done.outcome.parts.refused, 0, "{conn:?}");
+    }
+}
+
 /// The phase runs only when asked: with no option of it, the specks and the cube stay and the
 /// report has no count after it; with one, it does.
 #[test]

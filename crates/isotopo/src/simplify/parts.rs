@@ -97,8 +97,8 @@ pub struct Parts {
     pub removed: Vec<PartRemoved>,
     /// Those asked for that stayed.
     pub kept: Vec<PartKept>,
-    /// Bridges and tunnels found but refused by the local check (the part was then deleted or
-    /// filled instead).
+    /// Bridges and tunnels found but refused by the local check (the next shortest way is then
+    /// tried, four in all, before the part is deleted or filled instead).
     pub refused: usize,
     /// Components and cavities (b0, b2) after this phase (what the handles' removal then keeps);
     /// `None` when the phase did not run.
