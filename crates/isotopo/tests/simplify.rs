@@ -18,7 +18,7 @@ use common::{shapes, Rng, BOTH};
 use isotopo::grid::{Axis, MaskVolume};
 use isotopo::loops::Metric;
 use isotopo::progress::NoProgress;
-use isotopo::simplify::{simplify, KeepReason, Mode, Outcome, SimplifyOptions};
+use isotopo::simplify::{simplify, KeepReason, Mode, Operation, Outcome, SimplifyOptions};
 use isotopo::topology::{Connectivity, Inside, SurfaceOptions};
 use isotopo::volume::{Affine, InMemoryVolume};
 
@@ -133,6 +133,22 @@ fn check(
         return Err(format!(
             "{what}: genus {} -> {} but {} handles reported removed, {} opened",
             before.1, after.1, removed, opened
+        ));
+    }
+    // The report's counts by operation (JSON `collapse`, `pinch`): every removed handle is
+    // one or the other, and fill only collapses, cut only pinches.
+    let (collapsed, pinched) = (
+        out.handles_removed_by(Operation::Collapse),
+        out.handles_removed_by(Operation::Pinch),
+    );
+    let by_mode = match opts.mode {
+        Mode::Both => true,
+        Mode::FillOnly => pinched == 0,
+        Mode::CutOnly => collapsed == 0,
+    };
+    if collapsed + pinched != removed || !by_mode {
+        return Err(format!(
+            "{what}: {removed} handles removed, {collapsed} by collapse, {pinched} by pinch"
         ));
     }
     // With both operations allowed, nothing is kept for want of a closure. With fill or cut
