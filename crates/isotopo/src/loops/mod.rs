@@ -2463,6 +2463,24 @@ mod tests {
             kept.push(cache.segments.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
+        // A new cache keeps 2^20 vertices of cheap loops and 2^20 of stretches (8 MiB each):
+        // sixteen paths of 2^16, all held; one vertex more forgets them.
+        let mut cache = SliceCache::new(conn);
+        let long = lp(1 << 16);
+        for key in 0..16 {
+            cache.keep_cheap(key, &long);
+            cache.keep_segment((key as i64, 0, 0, (0, 0)), &long);
+        }
+        assert_eq!(
+            (cache.cheap.paths.len(), cache.segments.paths.len()),
+            (16, 16)
+        );
+        cache.keep_cheap(16, &lp(1));
+        cache.keep_segment((16, 0, 0, (0, 0)), &lp(1));
+        assert_eq!(
+            (cache.cheap.paths.len(), cache.segments.paths.len()),
+            (1, 1)
+        );
     }
 
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
