@@ -2463,9 +2463,21 @@ mod tests {
             kept.push(cache.segments.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
-        // A new cache keeps 2^20 vertices of cheap loops and 2^20 of stretches (8 MiB each):
-        // sixteen paths of 2^16, all held; one vertex more forgets them.
-        let mut cache = SliceCache::new(conn);
+    }
+
+    /// A new cache keeps 2^20 vertices of cheap loops and 2^20 of walk stretches (8 MiB each):
+    /// sixteen paths of 2^16, all held; one vertex more forgets them.
+    #[test]
+    fn a_new_cache_keeps_a_million_vertices_of_cheap_loops_and_of_stretches() {
+        let mut cache = SliceCache::new(Connectivity::Six);
+        let lp = |n: usize| -> Vec<Vertex> {
+            (0..n as i64)
+                .map(|i| Vertex {
+                    p: [i, 0, 0],
+                    axis: 1,
+                })
+                .collect()
+        };
         let long = lp(1 << 16);
         for key in 0..16 {
             cache.keep_cheap(key, &long);
