@@ -338,4 +338,28 @@ mod tests {
         }
         assert!(walks > 5, "{walks} handles");
     }
+
+    /// The walk's search can find a loop below tau (at 4 on the sponge, a loop of 3 edges of
+    /// another handle crosses some walks): that loop is the certificate's answer, to be closed,
+    /// not the pair alone.
+    #[test]
+    fn a_loop_below_tau_crossing_the_walk_is_closed() {
+        let a = sponge();
+        let conn = Connectivity::Six;
+        let mut below = 0;
+        for (i, (h, l)) in a.report.handles.iter().zip(&a.loops).enumerate() {
+            let (Some((p, q)), None, true) = (&l.basis, h.located.ribbon, l.exact) else {
+                continue;
+            };
+            let mut step = StepCurves::default();
+            step.curves.add(&a.masks, conn, &[p.clone(), q.clone()]);
+            let mut caches = Caches::new(conn);
+            if let Certificate::Below(short) = certify_sponge(&a, i, 4.0, &mut caches, &mut step) {
+                let len = short.reeb.as_ref().map(|x| x.length);
+                assert!(len.is_some_and(|n| (n as f64) < 4.0), "{len:?}");
+                below += 1;
+            }
+        }
+        assert!(below > 0, "no walk crossed by a loop below 4");
+    }
 }
