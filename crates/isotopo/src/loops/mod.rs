@@ -2420,14 +2420,6 @@ mod tests {
             assert_eq!(cache.contours.len(), 2 - extra, "limit {} less", extra);
         }
 
-        let lp = |n: usize| -> Vec<Vertex> {
-            (0..n as i64)
-                .map(|i| Vertex {
-                    p: [i, 0, 0],
-                    axis: 1,
-                })
-                .collect()
-        };
         let mut cache = SliceCache::new(conn);
         cache.limits.cheap_vertices = 20;
         let held = |cache: &SliceCache| cache.cheap.paths.values().map(|c| c.len()).sum::<usize>();
@@ -2435,10 +2427,10 @@ mod tests {
         // 20 each forget all.
         let mut kept = Vec::new();
         for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 8), (4, 9), (5, 20)] {
-            cache.keep_cheap(key, &lp(n));
+            cache.keep_cheap(key, &row(n));
             assert_eq!(cache.cheap.vertices, held(&cache), "key {key}");
             assert!(cache.cheap.vertices <= 20, "key {key}");
-            assert_eq!(cache.kept_cheap(key), Some(lp(n)), "key {key}");
+            assert_eq!(cache.kept_cheap(key), Some(row(n)), "key {key}");
             kept.push(cache.cheap.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
@@ -2456,13 +2448,23 @@ mod tests {
         let mut kept = Vec::new();
         for (key, n) in [(1, 6), (2, 8), (1, 4), (3, 8), (4, 9), (5, 20)] {
             let key = (key, 0, 0, (0, 0));
-            cache.keep_segment(key, &lp(n));
+            cache.keep_segment(key, &row(n));
             assert_eq!(cache.segments.vertices, held(&cache), "key {key:?}");
             assert!(cache.segments.vertices <= 20, "key {key:?}");
-            assert_eq!(cache.segment(&key), Some(lp(n)), "key {key:?}");
+            assert_eq!(cache.segment(&key), Some(row(n)), "key {key:?}");
             kept.push(cache.segments.paths.len());
         }
         assert_eq!(kept, [1, 2, 2, 3, 1, 1]);
+    }
+
+    /// `n` vertices in a row along x: a path for the caches' bookkeeping, which reads only keys.
+    fn row(n: usize) -> Vec<Vertex> {
+        (0..n as i64)
+            .map(|i| Vertex {
+                p: [i, 0, 0],
+                axis: 1,
+            })
+            .collect()
     }
 
     /// A new cache keeps 2^20 vertices of cheap loops and 2^20 of walk stretches (8 MiB each):
@@ -2470,15 +2472,7 @@ mod tests {
     #[test]
     fn a_new_cache_keeps_a_million_vertices_of_cheap_loops_and_of_stretches() {
         let mut cache = SliceCache::new(Connectivity::Six);
-        let lp = |n: usize| -> Vec<Vertex> {
-            (0..n as i64)
-                .map(|i| Vertex {
-                    p: [i, 0, 0],
-                    axis: 1,
-                })
-                .collect()
-        };
-        let long = lp(1 << 16);
+        let long = row(1 << 16);
         for key in 0..16 {
             cache.keep_cheap(key, &long);
             cache.keep_segment((key as i64, 0, 0, (0, 0)), &long);
@@ -2487,8 +2481,8 @@ mod tests {
             (cache.cheap.paths.len(), cache.segments.paths.len()),
             (16, 16)
         );
-        cache.keep_cheap(16, &lp(1));
-        cache.keep_segment((16, 0, 0, (0, 0)), &lp(1));
+        cache.keep_cheap(16, &row(1));
+        cache.keep_segment((16, 0, 0, (0, 0)), &row(1));
         assert_eq!(
             (cache.cheap.paths.len(), cache.segments.paths.len()),
             (1, 1)
@@ -2836,16 +2830,8 @@ mod tests {
     #[test]
     fn an_edit_forgets_the_stretches_whose_neighbourhoods_it_touches() {
         let mut cache = SliceCache::new(Connectivity::Six);
-        let path = |n: usize| -> Vec<Vertex> {
-            (0..n as i64)
-                .map(|i| Vertex {
-                    p: [i, 0, 0],
-                    axis: 0,
-                })
-                .collect()
-        };
         for s in 0..15 {
-            cache.keep_segment((s, 0, 7, (1, 2)), &path(s as usize + 1));
+            cache.keep_segment((s, 0, 7, (1, 2)), &row(s as usize + 1));
         }
         cache.invalidate(6, 8);
         let left: Vec<i64> = {
@@ -2856,7 +2842,7 @@ mod tests {
         assert_eq!(left, [0, 1, 2, 3, 10, 11, 12, 13, 14]);
         let held: usize = cache.segments.paths.values().map(|p| p.len()).sum();
         assert_eq!(cache.segments.vertices, held);
-        assert_eq!(cache.segment(&(3, 0, 7, (1, 2))), Some(path(4)));
+        assert_eq!(cache.segment(&(3, 0, 7, (1, 2))), Some(row(4)));
         assert_eq!(cache.segment(&(3, 1, 7, (1, 2))), None, "another ribbon");
     }
 
