@@ -40,7 +40,9 @@
 //!   closes handles afterwards): a face whose two corners are one component but no swap mends
 //!   (joined only far away, or through material no single sample cuts) gets the handle the
 //!   other connectivity sees through it (`Mender::open_handle`). Simplify's next pass closes
-//!   that handle elsewhere, with the sample kept ([`Composition::opened`]).
+//!   that handle elsewhere, with the sample kept ([`Composition::opened`]). Until then no
+//!   change may move the handle off that sample (mending the faces round it could: see
+//!   `compose_holding`), so that one no pass closes is taken back by flipping the sample back.
 //!
 //! Every other change keeps the components, handles and cavities of the chosen connectivity (a
 //! swap or a rewrite may move a handle, never add or remove one); every change lowers the number
@@ -127,11 +129,32 @@ pub fn compose(
     opts: ComposeOptions,
     progress: &dyn Progress,
 ) -> Result<Composition> {
+    compose_holding(vol, conn, opts, &[], progress)
+}
+
+/// [`compose`], holding the handles opened before (`held`: samples an earlier step flipped to
+/// open one, see [`Composition::opened`]) where they are, as it holds those it opens: no change
+/// alters the topological numbers of such a sample, so flipping it back still removes exactly
+/// its handle (`take_back`).
+///
+/// ```text
+///   a b .        a b #        b opened a handle between a and d; filling c to mend a face
+///   . d .   ->   . d .        beside it would let the handle pass round b (b simple): then
+///                             taking b back would leave the handle. Such a change is refused.
+/// ```
+pub(crate) fn compose_holding(
+    vol: &mut MaskVolume,
+    conn: Connectivity,
+    opts: ComposeOptions,
+    held: &[[i64; 3]],
+    progress: &dyn Progress,
+) -> Result<Composition> {
     let before = count_volume(vol);
     let mut mender = Mender {
         conn,
         only: opts.only,
         open_handles: opts.open_handles,
+        held: held.iter().map(|&b| (b, ())).collect(),
         original: FastMap::default(),
         pairs: 0,
         moves: 0,
@@ -221,12 +244,50 @@ impl Near {
     }
 }
 
+/// The kinds of change that mend a critical cell, in the order they are tried (see the module
+/// notes).
+#[derive(Clone, Copy)]
+enum Change {
+    /// One simple flip (`Mender::best_single`).
+    Single,
+    /// Two simple flips within one sample (`Mender::best_pair`).
+    Pair,
+    /// A speck moved or put down elsewhere (`Mender::relocate`).
+    Move,
+    /// A detour of three simple flips (`Mender::best_triple`).
+    Triple,
+    /// A dent filled (`Mender::fill_dent`).
+    Dent,
+    /// A handle moved off the face (`Mender::swap_handle`).
+    Swap,
+    /// Flips that keep the topology together (`Mender::best_rewrite`).
+    Rewrite,
+    /// A handle opened through the face (`Mender::open_handle`).
+    Opening,
+}
+
+impl Change {
+    const ALL: [Change; 8] = [
+        Change::Single,
+        Change::Pair,
+        Change::Move,
+        Change::Triple,
+        Change::Dent,
+        Change::Swap,
+        Change::Rewrite,
+        Change::Opening,
+    ];
+}
+
 struct Mender {
     conn: Connectivity,
     /// The only side samples may be flipped to, if any.
     only: Option<bool>,
     /// Whether a face may be mended by opening a handle (see [`ComposeOptions`]).
     open_handles: bool,
+    /// Samples that opened a handle, before or in this step: held where they are (see
+    /// [`compose_holding`]).
+    held: FastMap<[i64; 3], ()>,
     /// Each flipped sample's first side.
     original: FastMap<[i64; 3], bool>,
     pairs: u64,
@@ -283,37 +344,85 @@ impl Mender {
             if !is_critical(vol, cell) {
                 continue;
             }
-            let flipped = if let Some(p) = self.best_single(vol, cell) {
-                vec![p]
-            } else if let Some((p, q)) = self.best_pair(vol, cell) {
-                self.pairs += 1;
-                vec![p, q]
-            } else if let Some(moves) = self.relocate(vol, cell) {
-                self.moves += 1;
-                moves
-            } else if let Some(three) = self.best_triple(vol, cell) {
-                self.pairs += 1;
-                three
-            } else if let Some(fill) = self.fill_dent(vol, cell) {
-                self.moves += 1;
-                fill
-            } else if let Some(swap) = self.swap_handle(vol, cell) {
-                self.swaps += 1;
-                swap
-            } else if let Some(set) = self.best_rewrite(vol, cell) {
-                self.rewrites += 1;
-                set
-            } else if let Some(b) = self.open_handle(vol, cell) {
-                self.opened.push(b);
-                vec![b]
-            } else {
+            let Some((change, flipped)) = self.first_change(vol, cell) else {
                 continue;
             };
+            match change {
+                Change::Single => {}
+                Change::Pair | Change::Triple => self.pairs += 1,
+                Change::Move | Change::Dent => self.moves += 1,
+                Change::Swap => self.swaps += 1,
+                Change::Rewrite => self.rewrites += 1,
+                Change::Opening => {
+                    self.opened.push(flipped[0]);
+                    self.held.insert(flipped[0], ());
+                }
+            }
             for p in flipped {
                 self.flip(vol, p);
                 todo.extend(cells_at(p).into_iter().filter(|&c| is_critical(vol, c)));
             }
         }
+    }
+
+    /// The first kind of change, in [`Change::ALL`]'s order, that mends `cell`, and its flips;
+    /// none if that change would move an opened handle (see [`compose_holding`]).
+    fn first_change(
+        &mut self,
+        vol: &mut MaskVolume,
+        cell: Cell,
+    ) -> Option<(Change, Vec<[i64; 3]>)> {
+        for change in Change::ALL {
+            let flips = match change {
+                Change::Single => self.best_single(vol, cell).map(|p| vec![p]),
+                Change::Pair => self.best_pair(vol, cell).map(|(p, q)| vec![p, q]),
+                Change::Move => self.relocate(vol, cell),
+                Change::Triple => self.best_triple(vol, cell),
+                Change::Dent => self.fill_dent(vol, cell),
+                Change::Swap => self.swap_handle(vol, cell),
+                Change::Rewrite => self.best_rewrite(vol, cell),
+                Change::Opening => self.open_handle(vol, cell).map(|b| vec![b]),
+            };
+            if let Some(flips) = flips {
+                // The cell is left while the handle stands (the kinds after would cost the most
+                // and seldom do better).
+                return self
+                    .holds_the_opened(vol, &flips)
+                    .then_some((change, flips));
+            }
+        }
+        None
+    }
+
+    /// Whether every held sample (see [`compose_holding`]) keeps its handle's passage with
+    /// `flips` made: still two pieces of the 6-connected side round it and one of the other,
+    /// so that flipping it back removes exactly one handle. A held sample is never flipped.
+    fn holds_the_opened(&self, vol: &mut MaskVolume, flips: &[[i64; 3]]) -> bool {
+        if self.held.is_empty() {
+            return true;
+        }
+        if flips
+            .iter()
+            .any(|p| self.held.contains_key(p) && state(vol, *p) == self.six_side())
+        {
+            return false;
+        }
+        // A sample's numbers read its 26 neighbours: only held samples next to a flip change.
+        let mut near = Vec::new();
+        for p in flips {
+            for q in neighbours26(*p) {
+                if self.held.contains_key(&q) {
+                    near.push(q);
+                }
+            }
+        }
+        if near.is_empty() {
+            return true;
+        }
+        flips.iter().for_each(|&p| toggle(vol, p));
+        let kept = near.iter().all(|&b| self.numbers(vol, b) == (2, 1));
+        flips.iter().for_each(|&p| toggle(vol, p));
+        kept
     }
 
     fn flip(&mut self, vol: &mut MaskVolume, p: [i64; 3]) {
@@ -1171,6 +1280,16 @@ pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -
     joined
 }
 
+/// Whether sample `b`, flipped to open a handle, may still be its passage (to hold, see
+/// [`compose_holding`]): on the 6-connected side, with two pieces of that side round it and one
+/// of the other. Local, so cheap: a handle a wall closed beside `b` (joining the two pieces
+/// there) is let go; one closed far away is held no matter, which only leaves a face or two
+/// round `b` unmended.
+pub(crate) fn may_hold_a_handle(vol: &MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
+    let side = conn == Connectivity::Six;
+    within(vol, b) && state(vol, b) == side && side_numbers(vol, b, conn) == (2, 1)
+}
+
 /// Whether `a` and `d` lie in one component of `side` (6-adjacent samples; the padding beyond
 /// the volume is outside and joins everything on the border): searched from both ends, the
 /// smaller side a whole level at a time, within [`COMPONENT_PLANES`] planes of `a` (out of
@@ -1315,6 +1434,13 @@ fn around(vol: &MaskVolume, (_, c): Cell, r: i64) -> Vec<[i64; 3]> {
     out
 }
 
+/// The 26 samples round `p` (some may lie beyond the volume).
+fn neighbours26(p: [i64; 3]) -> impl Iterator<Item = [i64; 3]> {
+    (0..27)
+        .filter(|&k| k != 13)
+        .map(move |k| [p[0] + k % 3 - 1, p[1] + k / 3 % 3 - 1, p[2] + k / 9 - 1])
+}
+
 /// The twenty cells that have sample `p` as a corner: eight cubes and twelve faces.
 fn cells_at(p: [i64; 3]) -> [Cell; 20] {
     let mut out = [(CellKind::Cube, p); 20];
@@ -1349,6 +1475,7 @@ mod tests {
             conn: Connectivity::Six,
             only: None,
             open_handles: false,
+            held: FastMap::default(),
             original: FastMap::default(),
             pairs: 0,
             moves: 0,

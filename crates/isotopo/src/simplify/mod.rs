@@ -972,7 +972,10 @@ impl<'a> Run<'a> {
             only,
             open_handles: another && self.opening && self.opts.tau > 0.0 && self.budget.is_none(),
         };
-        let c = crate::compose::compose(vol, self.conn, opts, self.progress)?;
+        // The handles opened before and not closed since stay where they can be taken back.
+        let mut held: Vec<[i64; 3]> = self.locked.keys().copied().collect();
+        held.retain(|&b| crate::compose::may_hold_a_handle(vol, self.conn, b));
+        let c = crate::compose::compose_holding(vol, self.conn, opts, &held, self.progress)?;
         // The first few opened samples locate them; a noisy scan opens thousands.
         let shown = &c.opened[..c.opened.len().min(8)];
         self.progress.trace(format_args!(
