@@ -2489,6 +2489,29 @@ mod tests {
         );
     }
 
+    /// Between handles the cache keeps the sweep's slices up to 48 MiB (a walk round a tall
+    /// cycle needs each of its slices in turn; rebuilding them was a fifth of a run on noise);
+    /// past that it forgets the least recently offered until half is left.
+    #[test]
+    fn the_slice_cache_keeps_48_mib_and_forgets_the_oldest() {
+        // `bottom` holds u32s: 1 MiB per 2^18 of capacity.
+        let slice = |mib: usize| crate::topology::slice::SliceSurfels {
+            bottom: Vec::with_capacity(mib << 18),
+            ..Default::default()
+        };
+        let mut cache = SliceCache::new(Connectivity::Six);
+        // Twelve of 4 MiB, offered from the highest down: 48 MiB, all kept.
+        for s in (0..12).rev() {
+            cache.offer(s, slice(4));
+        }
+        assert_eq!(cache.slices.len(), 12);
+        // One more: the seven offered first (11 down to 5) go, 24 MiB are left.
+        cache.offer(100, slice(4));
+        let mut kept: Vec<i64> = cache.slices.keys().copied().collect();
+        kept.sort_unstable();
+        assert_eq!(kept, [0, 1, 2, 3, 4, 100]);
+    }
+
     /// A closed polyline's length in millimetres: a rectangle 3 × 2 voxels with spacing
     /// (0.5, 2, 1) mm is 2 × (1.5 + 4) mm round, its closing edge included, and a rotation
     /// of the axes does not change it; stood up with its long side along z, 2 × (3 + 4) mm; a
