@@ -401,16 +401,16 @@ impl Mender {
         if self.held.is_empty() {
             return true;
         }
-        if flips
-            .iter()
-            .any(|p| self.held.contains_key(p) && state(vol, *p) == self.six_side())
-        {
+        // (A sample that opens a handle is held once flipped.)
+        if flips.iter().any(|p| self.held.contains_key(p)) {
             return false;
         }
         // A sample's numbers read its 26 neighbours: only held samples next to a flip change.
+        let offsets = &crate::grid::simple::neighbourhood().offsets;
         let mut near = Vec::new();
         for p in flips {
-            for q in neighbours26(*p) {
+            for d in offsets {
+                let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
                 if self.held.contains_key(&q) {
                     near.push(q);
                 }
@@ -1256,12 +1256,11 @@ fn side_path(
 /// without it (so the flip removes exactly one handle, and changes no component or cavity);
 /// says whether it did.
 pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
-    let side = conn == Connectivity::Six;
-    if !within(vol, b) || state(vol, b) != side {
+    if !may_hold_a_handle(vol, conn, b) {
         return false;
     }
+    let side = conn == Connectivity::Six;
     toggle(vol, b);
-    let numbers = side_numbers(vol, b, conn);
     let faces = STEPS.map(|e| [b[0] + e[0], b[1] + e[1], b[2] + e[2]]);
     let ends = faces
         .iter()
@@ -1272,8 +1271,7 @@ pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -
                 .find(|&&q| state(vol, q) == side && !same_piece(vol, b, side, a, q))?;
             Some((a, *d))
         });
-    let joined = numbers == (2, 1)
-        && ends.is_some_and(|(a, d)| one_component(vol, a, d, side) == Some(true));
+    let joined = ends.is_some_and(|(a, d)| one_component(vol, a, d, side) == Some(true));
     if !joined {
         toggle(vol, b);
     }
@@ -1281,8 +1279,8 @@ pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -
 }
 
 /// Whether sample `b`, flipped to open a handle, may still be its passage (to hold, see
-/// [`compose_holding`]): on the 6-connected side, with two pieces of that side round it and one
-/// of the other. Local, so cheap: a handle a wall closed beside `b` (joining the two pieces
+/// [`compose_holding`]; the first test of [`take_back`]): on the 6-connected side, with two
+/// pieces of that side round it and one of the other (its numbers do not read `b` itself). Local, so cheap: a handle a wall closed beside `b` (joining the two pieces
 /// there) is let go; one closed far away is held no matter, which only leaves a face or two
 /// round `b` unmended.
 pub(crate) fn may_hold_a_handle(vol: &MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
@@ -1432,13 +1430,6 @@ fn around(vol: &MaskVolume, (_, c): Cell, r: i64) -> Vec<[i64; 3]> {
         }
     }
     out
-}
-
-/// The 26 samples round `p` (some may lie beyond the volume).
-fn neighbours26(p: [i64; 3]) -> impl Iterator<Item = [i64; 3]> {
-    (0..27)
-        .filter(|&k| k != 13)
-        .map(move |k| [p[0] + k % 3 - 1, p[1] + k / 3 % 3 - 1, p[2] + k / 9 - 1])
 }
 
 /// The twenty cells that have sample `p` as a corner: eight cubes and twelve faces.
