@@ -1015,7 +1015,7 @@ impl Mender {
         }
         let (b, _) = best?;
         // Last, as it may visit a whole component: joined elsewhere, else b would join two.
-        (one_component(vol, joined[0], joined[1], side) == Some(true)).then_some(b)
+        (one_component(vol, joined[0], joined[1], side, Reach::Near) == Some(true)).then_some(b)
     }
 
     /// The topological numbers of `p` as (6-connected side, other side).
@@ -1271,11 +1271,24 @@ pub(crate) fn take_back(vol: &mut MaskVolume, conn: Connectivity, b: [i64; 3]) -
                 .find(|&&q| state(vol, q) == side && !same_piece(vol, b, side, a, q))?;
             Some((a, *d))
         });
-    let joined = ends.is_some_and(|(a, d)| one_component(vol, a, d, side) == Some(true));
+    let joined = ends.is_some_and(|(a, d)| joined_for_sure(vol, a, d, side));
     if !joined {
         toggle(vol, b);
     }
     joined
+}
+
+/// Whether `a` and `d` are one component of `side`: near first, then, when that does not tell
+/// and the volume is in core, the whole volume (the handle's other way round may be longer
+/// than a near search reaches; a handle left for that raised the genus of a chest CT).
+fn joined_for_sure(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> bool {
+    let near = one_component(vol, a, d, side, Reach::Near);
+    let known = near.or_else(|| {
+        (!vol.out_of_core())
+            .then(|| one_component(vol, a, d, side, Reach::Whole))
+            .flatten()
+    });
+    known == Some(true)
 }
 
 /// Whether sample `b`, flipped to open a handle, may still be its passage (to hold, see
@@ -1288,33 +1301,93 @@ pub(crate) fn may_hold_a_handle(vol: &MaskVolume, conn: Connectivity, b: [i64; 3
     within(vol, b) && state(vol, b) == side && side_numbers(vol, b, conn) == (2, 1)
 }
 
+/// How far [`one_component`] may search.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reach {
+    /// Within [`COMPONENT_PLANES`] planes of the first end and [`COMPONENT_BUDGET`] samples,
+    /// kept in hash maps: cheap, for the many searches of the step, and may not know.
+    Near,
+    /// The whole volume, a bit a padded sample for each end: always knows. For the few searches
+    /// that decide the topology (taking a handle back), in core only (each plane it reads
+    /// stays loaded).
+    Whole,
+}
+
+/// The samples one end of [`one_component`] has reached.
+enum Seen {
+    /// By coordinates packed into one word (21 bits each).
+    Keys(FastMap<u64, ()>),
+    /// A bit for each sample of the padded grid.
+    Bits(Vec<u64>),
+}
+
+impl Seen {
+    fn new(reach: Reach, padded: usize) -> Seen {
+        match reach {
+            Reach::Near => Seen::Keys(FastMap::default()),
+            Reach::Whole => Seen::Bits(vec![0; padded.div_ceil(64)]),
+        }
+    }
+
+    fn contains(&self, k: u64) -> bool {
+        match self {
+            Seen::Keys(m) => m.contains_key(&k),
+            Seen::Bits(b) => b[(k / 64) as usize] >> (k % 64) & 1 == 1,
+        }
+    }
+
+    fn insert(&mut self, k: u64) {
+        match self {
+            Seen::Keys(m) => {
+                m.insert(k, ());
+            }
+            Seen::Bits(b) => b[(k / 64) as usize] |= 1 << (k % 64),
+        }
+    }
+}
+
 /// Whether `a` and `d` lie in one component of `side` (6-adjacent samples; the padding beyond
 /// the volume is outside and joins everything on the border): searched from both ends, the
-/// smaller side a whole level at a time, within [`COMPONENT_PLANES`] planes of `a` (out of
-/// core, each plane it reads stays loaded). `None` when the search would visit more than
-/// [`COMPONENT_BUDGET`] samples, or a side ends having reached that plane limit (a component
-/// of a large scan: the face is left).
-fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Option<bool> {
-    // Keys packed into one word (the volume plus its padding fits 21 bits a coordinate).
-    let key = |q: [i64; 3]| q.iter().fold(0u64, |k, &c| (k << 21) | (c + 1) as u64);
-    if vol.dims.iter().any(|&n| n + 2 >= 1 << 21) {
+/// smaller side a whole level at a time, as far as `reach` lets. `None` (only within
+/// [`Reach::Near`]) when the search would visit more than [`COMPONENT_BUDGET`] samples, or a
+/// side ends having reached [`COMPONENT_PLANES`] planes from `a` (a component of a large scan:
+/// the face is left).
+fn one_component(
+    vol: &MaskVolume,
+    a: [i64; 3],
+    d: [i64; 3],
+    side: bool,
+    reach: Reach,
+) -> Option<bool> {
+    if reach == Reach::Near && vol.dims.iter().any(|&n| n + 2 >= 1 << 21) {
         return None;
     }
+    let p = vol.dims.map(|n| n as u64 + 2);
+    let key = |q: [i64; 3]| match reach {
+        Reach::Near => q.iter().fold(0u64, |k, &c| (k << 21) | (c + 1) as u64),
+        Reach::Whole => ((q[2] + 1) as u64 * p[1] + (q[1] + 1) as u64) * p[0] + (q[0] + 1) as u64,
+    };
+    let (budget, planes) = match reach {
+        Reach::Near => (COMPONENT_BUDGET, COMPONENT_PLANES),
+        Reach::Whole => (usize::MAX, i64::MAX),
+    };
     let inside = |q: [i64; 3]| (0..3).all(|c| q[c] >= -1 && q[c] <= vol.dims[c] as i64);
-    let near = |q: [i64; 3]| (q[2] - a[2]).abs() <= COMPONENT_PLANES;
+    let near = |q: [i64; 3]| (q[2] - a[2]).abs() <= planes;
     // Whether each side's search met the plane limit: then its end proves nothing.
     let mut limited = [false; 2];
-    let mut seen: [FastMap<u64, ()>; 2] = [FastMap::default(), FastMap::default()];
+    let padded = (p[0] * p[1] * p[2]) as usize;
+    let mut seen = [Seen::new(reach, padded), Seen::new(reach, padded)];
+    let mut count = 2;
     let mut levels = [vec![a], vec![d]];
-    seen[0].insert(key(a), ());
-    seen[1].insert(key(d), ());
+    seen[0].insert(key(a));
+    seen[1].insert(key(d));
     while !levels[0].is_empty() && !levels[1].is_empty() {
         let k = usize::from(levels[1].len() < levels[0].len());
         let mut next = Vec::new();
         for q in std::mem::take(&mut levels[k]) {
             for e in STEPS {
                 let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
-                if !inside(r) || seen[k].contains_key(&key(r)) {
+                if !inside(r) || seen[k].contains(key(r)) {
                     continue;
                 }
                 if !near(r) {
@@ -1324,14 +1397,15 @@ fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Opti
                 if state(vol, r) != side {
                     continue;
                 }
-                if seen[1 - k].contains_key(&key(r)) {
+                if seen[1 - k].contains(key(r)) {
                     return Some(true);
                 }
-                seen[k].insert(key(r), ());
+                seen[k].insert(key(r));
                 next.push(r);
             }
         }
-        if seen[0].len() + seen[1].len() > COMPONENT_BUDGET {
+        count += next.len();
+        if count > budget {
             return None;
         }
         levels[k] = next;
@@ -1342,10 +1416,10 @@ fn one_component(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> Opti
     (!limited[ended]).then_some(false)
 }
 
-/// Most samples [`one_component`] visits (about 40 MB of maps).
+/// Most samples [`one_component`] visits within [`Reach::Near`] (about 40 MB of maps).
 const COMPONENT_BUDGET: usize = 1 << 20;
 
-/// How far from the face, in planes, [`one_component`] searches.
+/// How far from the face, in planes, [`one_component`] searches within [`Reach::Near`].
 const COMPONENT_PLANES: i64 = 64;
 
 fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {
@@ -1634,7 +1708,9 @@ mod tests {
                         continue;
                     }
                     let expected = label[at(a) as usize] == label[at(d) as usize];
-                    assert_eq!(one_component(&vol, a, d, side), Some(expected));
+                    for reach in [Reach::Near, Reach::Whole] {
+                        assert_eq!(one_component(&vol, a, d, side, reach), Some(expected));
+                    }
                     *if expected { &mut same } else { &mut apart } += 1;
                 }
             }
@@ -1643,26 +1719,83 @@ mod tests {
     }
 
     /// A column of inside samples 150 planes tall: its ends are one component, but beyond the
-    /// planes searched from the first; near ones are found joined.
+    /// planes a near search reaches from the first; near ones are found joined. The whole
+    /// volume tells them all.
     #[test]
-    fn one_component_searches_only_planes_near_the_face() {
+    fn one_component_near_searches_only_planes_near_the_face() {
+        let near = |vol: &MaskVolume, a, d, side| one_component(vol, a, d, side, Reach::Near);
+        let whole = |vol: &MaskVolume, a, d, side| one_component(vol, a, d, side, Reach::Whole);
         let mut vol = MaskVolume::new([3, 3, 150], Frame::identity());
         for z in 0..150 {
             set(&mut vol, [1, 1, z], true);
         }
-        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, 10], true), Some(true));
+        assert_eq!(near(&vol, [1, 1, 0], [1, 1, 10], true), Some(true));
         let far = COMPONENT_PLANES + 5;
-        assert_eq!(one_component(&vol, [1, 1, 0], [1, 1, far], true), None);
+        assert_eq!(near(&vol, [1, 1, 0], [1, 1, far], true), None);
+        assert_eq!(whole(&vol, [1, 1, 0], [1, 1, 149], true), Some(true));
+        assert!(joined_for_sure(&vol, [1, 1, 0], [1, 1, 149], true));
         // Outside, joined through the padding round the volume.
-        assert_eq!(one_component(&vol, [0, 0, 0], [2, 2, 3], false), Some(true));
+        assert_eq!(near(&vol, [0, 0, 0], [2, 2, 3], false), Some(true));
+        assert_eq!(whole(&vol, [0, 0, 0], [2, 2, 149], false), Some(true));
         // Cut the column: two components, told apart where one of them is searched whole
-        // within reach, not where neither is.
+        // within reach, not where neither is (but within the whole volume).
         set(&mut vol, [1, 1, 20], false);
-        assert_eq!(
-            one_component(&vol, [1, 1, 0], [1, 1, 30], true),
-            Some(false)
-        );
-        assert_eq!(one_component(&vol, [1, 1, 100], [1, 1, 0], true), None);
+        assert_eq!(near(&vol, [1, 1, 0], [1, 1, 30], true), Some(false));
+        assert_eq!(near(&vol, [1, 1, 100], [1, 1, 0], true), None);
+        assert_eq!(whole(&vol, [1, 1, 100], [1, 1, 0], true), Some(false));
+        assert!(!joined_for_sure(&vol, [1, 1, 100], [1, 1, 0], true));
+    }
+
+    /// A slab of inside samples too wide for a near search's budget: two samples at its far
+    /// corners are found joined only by the whole volume.
+    #[test]
+    fn one_component_near_stops_at_its_budget() {
+        let n = [128, 128, 72];
+        let mut vol = MaskVolume::new(n, Frame::identity());
+        for z in 0..n[2] as i64 {
+            for y in 0..n[1] as i64 {
+                for x in 0..n[0] as i64 {
+                    set(&mut vol, [x, y, z], true);
+                }
+            }
+        }
+        let (a, d) = ([0, 0, 0], [127, 127, 63]);
+        assert_eq!(one_component(&vol, a, d, true, Reach::Near), None);
+        assert!(joined_for_sure(&vol, a, d, true));
+    }
+
+    /// A ring 150 planes tall whose two ends meet diagonally at a face in plane 0, joined by
+    /// `b`: the handle `b` opened is taken back though its other way round runs beyond a near
+    /// search (lidc2 filled only at tau 3 kept one such, a route of 166 samples over 78 planes
+    /// once another opening on its shorter way was taken back). With the ring cut, `b` is the
+    /// only join and stays.
+    ///
+    /// ```text
+    ///   z 149   a ====== d        plane 0:  a b      (a, d: the ring's two columns)
+    ///           |        |                  . d
+    ///   z 0     a -- b -- d
+    /// ```
+    #[test]
+    fn a_handle_is_taken_back_however_far_its_other_way_runs() {
+        let ring = || {
+            let mut vol = MaskVolume::new([4, 4, 150], Frame::identity());
+            for z in 0..150 {
+                set(&mut vol, [1, 1, z], true);
+                set(&mut vol, [2, 2, z], true);
+            }
+            set(&mut vol, [2, 1, 149], true);
+            set(&mut vol, [2, 1, 0], true);
+            vol
+        };
+        let b = [2, 1, 0];
+        let mut vol = ring();
+        assert!(may_hold_a_handle(&vol, Connectivity::Six, b));
+        assert!(take_back(&mut vol, Connectivity::Six, b));
+        assert!(!state(&vol, b));
+        let mut cut = ring();
+        set(&mut cut, [1, 1, 100], false);
+        assert!(!take_back(&mut cut, Connectivity::Six, b));
+        assert!(state(&cut, b));
     }
 
     /// Labels of the 6-connected pieces of `side` over the grid padded by one sample (outside).
