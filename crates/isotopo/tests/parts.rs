@@ -318,12 +318,17 @@ fn the_modes_choose_the_only_operation_they_allow() {
             let (done, mask) = run(&specks, &opts);
             assert_eq!(parts_of(&mask, specks.dims(), conn).0.len(), 1);
             assert_eq!(done.outcome.parts.count(op), 4, "{conn:?} {mode:?}");
+            // Every edit counted, all of the one kind the mode allows.
             let (filled, cut) = done.outcome.samples_filled_cut();
-            assert!(if mode == Mode::CutOnly {
-                filled == 0
-            } else {
-                cut == 0
-            });
+            assert_eq!(filled + cut, done.outcome.edits.len(), "{conn:?} {mode:?}");
+            let (allowed, other) = match mode {
+                Mode::CutOnly => (cut, filled),
+                _ => (filled, cut),
+            };
+            assert!(
+                allowed > 0 && other == 0,
+                "{conn:?} {mode:?}: {filled} filled, {cut} cut"
+            );
         }
     }
 }
