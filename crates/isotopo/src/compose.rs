@@ -1090,24 +1090,30 @@ impl Mender {
                 .collect();
             let is_corner: Vec<bool> = near.iter().map(|p| corners.contains(p)).collect();
             let count = count.get_or_insert_with(|| LocalCount::new(vol, lo, hi));
-            let mut lowering: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
-            for set in subsets(near.len(), k) {
-                if !set.iter().any(|&i| is_corner[i]) {
-                    continue;
-                }
-                let flips: Vec<[i64; 3]> = set.iter().map(|&i| near[i]).collect();
-                let d = count.change(&flips);
+            // Sets as indices into `near` (thousands are tried: no allocation for each).
+            let mut lowering: Vec<(i64, [usize; 3])> = Vec::new();
+            each_marked_subset(&is_corner, k, &mut |set| {
+                let mut flips = [[0; 3]; 3];
+                set.iter().zip(&mut flips).for_each(|(&i, f)| *f = near[i]);
+                let d = count.change(&flips[..k]);
                 if d < 0 {
-                    lowering.push((d, flips));
+                    let mut at = [0; 3];
+                    at[..k].copy_from_slice(set);
+                    lowering.push((d, at));
                 }
-            }
+            });
             if lowering.is_empty() {
                 continue;
             }
-            // Lowest count first; the topology test is the costly part.
+            // Lowest count first, ties in the order met; the topology test is the costly part.
             lowering.sort_by_key(|(d, _)| *d);
+            let flips_of = |set: &[usize; 3]| set[..k].iter().map(|&i| near[i]).collect::<Vec<_>>();
             let test = test.get_or_insert_with(|| SetTest::new(vol, lo, hi, self.conn));
-            if let Some((_, flips)) = lowering.into_iter().find(|(_, flips)| test.keeps(flips)) {
+            if let Some(flips) = lowering
+                .iter()
+                .map(|(_, set)| flips_of(set))
+                .find(|flips| test.keeps(flips))
+            {
                 return Some(flips);
             }
         }
@@ -1146,7 +1152,9 @@ impl LocalCount {
     /// with a flip as a corner, and the cells they own (the cube and its three faces at its
     /// lowest corner), can change. A flip `p` is corner `k` of the cube at `p - k`.
     fn change(&self, flips: &[[i64; 3]]) -> i64 {
-        let mut flipped: Vec<(usize, u8)> = Vec::with_capacity(8 * flips.len());
+        // A rewrite's three flips at most, thousands of sets a cell: no allocation.
+        assert!(flips.len() <= 3, "a rewrite flips at most three samples");
+        let (mut flipped, mut n) = ([(0usize, 0u8); 24], 0);
         for p in flips {
             for k in 0..8 {
                 let d = corner_offset(k);
@@ -1155,13 +1163,16 @@ impl LocalCount {
                     .cubes
                     .index(c)
                     .expect("flips lie in the region the count was made for");
-                match flipped.iter_mut().find(|(j, _)| *j == i) {
+                match flipped[..n].iter_mut().find(|(j, _)| *j == i) {
                     Some((_, mask)) => *mask ^= 1 << k,
-                    None => flipped.push((i, 1 << k)),
+                    None => {
+                        flipped[n] = (i, 1 << k);
+                        n += 1;
+                    }
                 }
             }
         }
-        flipped
+        flipped[..n]
             .iter()
             .map(|&(i, mask)| owned_critical(self.bits[i] ^ mask) - owned_critical(self.bits[i]))
             .sum()
@@ -1190,23 +1201,49 @@ fn corner_offset(k: u8) -> [i64; 3] {
     [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(i64::from)
 }
 
-/// The `k`-element subsets of `0..n`, each in increasing order.
-fn subsets(n: usize, k: usize) -> Vec<Vec<usize>> {
-    let mut out = Vec::new();
-    let mut set: Vec<usize> = (0..k).collect();
-    if k > n {
-        return out;
+/// Calls `f` with each `k`-element subset of `0..marked.len()` that holds a marked index, each
+/// in increasing order and the subsets in lexicographic order, skipping without a look the
+/// runs that cannot hold one (most: a cell has at most 8 corners among hundreds of samples).
+fn each_marked_subset(marked: &[bool], k: usize, f: &mut dyn FnMut(&[usize])) {
+    let n = marked.len();
+    // The first marked index at or after each place (`n`: none).
+    let mut next = vec![n; n + 1];
+    for i in (0..n).rev() {
+        next[i] = if marked[i] { i } else { next[i + 1] };
     }
-    loop {
-        out.push(set.clone());
-        // The last place that can still move up, and everything after it reset behind it.
-        let Some(i) = (0..k).rev().find(|&i| set[i] < n - k + i) else {
-            return out;
-        };
-        set[i] += 1;
-        for j in i + 1..k {
-            set[j] = set[j - 1] + 1;
+    pick(&next, marked, k, 0, false, &mut Vec::with_capacity(k), f);
+}
+
+/// [`each_marked_subset`] from index `from` on, `set` chosen so far (`has`: it holds a mark).
+fn pick(
+    next: &[usize],
+    marked: &[bool],
+    k: usize,
+    from: usize,
+    has: bool,
+    set: &mut Vec<usize>,
+    f: &mut dyn FnMut(&[usize]),
+) {
+    if set.len() == k {
+        f(set);
+        return;
+    }
+    let n = marked.len();
+    let mut i = from;
+    while i + (k - set.len()) <= n {
+        if !has {
+            if next[i] == n {
+                return;
+            }
+            // Without a mark so far, the last index chosen must be one.
+            if set.len() + 1 == k {
+                i = next[i];
+            }
         }
+        set.push(i);
+        pick(next, marked, k, i + 1, has || marked[i], set, f);
+        set.pop();
+        i += 1;
     }
 }
 
@@ -1796,6 +1833,38 @@ mod tests {
         set(&mut cut, [1, 1, 100], false);
         assert!(!take_back(&mut cut, Connectivity::Six, b));
         assert!(state(&cut, b));
+    }
+
+    /// `each_marked_subset` against every `k`-subset in lexicographic order, filtered: the same
+    /// sets in the same order (a rewrite's ties are broken by that order), for random marks.
+    #[test]
+    fn marked_subsets_are_every_subset_with_a_mark_in_order() {
+        let mut rng = crate::test_rng::Rng(0x05eb_5e75);
+        for round in 0..200 {
+            let n = (round % 23) as usize;
+            let marked: Vec<bool> = (0..n).map(|_| rng.unit() < 0.15).collect();
+            for k in 1..=4 {
+                let mut want = Vec::new();
+                let mut set: Vec<usize> = (0..k).collect();
+                if k <= n {
+                    loop {
+                        if set.iter().any(|&i| marked[i]) {
+                            want.push(set.clone());
+                        }
+                        let Some(i) = (0..k).rev().find(|&i| set[i] < n - k + i) else {
+                            break;
+                        };
+                        set[i] += 1;
+                        for j in i + 1..k {
+                            set[j] = set[j - 1] + 1;
+                        }
+                    }
+                }
+                let mut got = Vec::new();
+                each_marked_subset(&marked, k, &mut |s| got.push(s.to_vec()));
+                assert_eq!(got, want, "n {n}, k {k}, marked {marked:?}");
+            }
+        }
     }
 
     /// Labels of the 6-connected pieces of `side` over the grid padded by one sample (outside).
