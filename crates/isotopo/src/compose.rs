@@ -93,7 +93,7 @@ pub struct Composition {
 }
 
 /// What [`compose`] may do beyond flips that keep the topology.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ComposeOptions {
     /// The only side samples may be flipped to, if any (inside: material is only added).
     /// Default: either.

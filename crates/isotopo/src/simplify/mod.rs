@@ -456,6 +456,10 @@ fn keep_handles_tau(handles: &[&Kept], metric: Metric, remove: usize) -> f64 {
     }
 }
 
+/// The samples changed (see [`changed_sides`]) and the options of a well-composed step when it
+/// ended.
+type StepEnd = (Vec<([i64; 3], bool)>, crate::compose::ComposeOptions);
+
 /// What simplify carries from step to step and pass to pass.
 struct Run<'a> {
     opts: SimplifyOptions,
@@ -489,6 +493,10 @@ struct Run<'a> {
     locked: FastMap<[i64; 3], ()>,
     /// Whether the well-composed step may open handles (not right after one was taken back).
     opening: bool,
+    /// The samples changed (see [`changed_sides`]) and the step's options when [`Run::compose`]
+    /// last ended: run again on the same volume with the same options, the step flips nothing
+    /// (it ends where a look flips nothing), so it is not run.
+    composed_at: Option<StepEnd>,
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
@@ -519,6 +527,7 @@ impl<'a> Run<'a> {
             composition: None,
             locked: FastMap::default(),
             opening: true,
+            composed_at: None,
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
@@ -568,6 +577,8 @@ impl<'a> Run<'a> {
                     if self.record(c) == 0 {
                         return Ok(());
                     }
+                    let options = self.compose_options(true);
+                    self.composed_at = Some((changed_sides(vol, &self.original), options));
                     self.passes_while_changing(vol)?
                 }
             };
@@ -957,21 +968,39 @@ impl<'a> Run<'a> {
     /// and `another` pass follows to close it; the sample is then locked (and taken back, to
     /// its side in the input, if no pass closes that handle).
     fn compose(&mut self, vol: &mut MaskVolume, another: bool) -> Result<usize> {
+        let at = (
+            changed_sides(vol, &self.original),
+            self.compose_options(another),
+        );
+        if self.composed_at.as_ref() == Some(&at) {
+            self.progress.trace(format_args!(
+                "composed after pass {}: nothing changed since the step last ended",
+                self.passes
+            ));
+            return Ok(0);
+        }
         let c = self.composed(vol, another)?;
-        Ok(self.record(c))
+        let flipped = self.record(c);
+        self.composed_at = Some((changed_sides(vol, &self.original), at.1));
+        Ok(flipped)
     }
 
-    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]).
-    fn composed(&self, vol: &mut MaskVolume, another: bool) -> Result<crate::compose::Composition> {
+    /// What the well-composed step may do now (see [`Run::compose`]).
+    fn compose_options(&self, another: bool) -> crate::compose::ComposeOptions {
         let only = match self.opts.mode {
             Mode::Both => None,
             Mode::FillOnly => Some(true),
             Mode::CutOnly => Some(false),
         };
-        let opts = crate::compose::ComposeOptions {
+        crate::compose::ComposeOptions {
             only,
             open_handles: another && self.opening && self.opts.tau > 0.0 && self.budget.is_none(),
-        };
+        }
+    }
+
+    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]).
+    fn composed(&self, vol: &mut MaskVolume, another: bool) -> Result<crate::compose::Composition> {
+        let opts = self.compose_options(another);
         // The handles opened before and not closed since stay where they can be taken back.
         let mut held: Vec<[i64; 3]> = self.locked.keys().copied().collect();
         held.retain(|&b| crate::compose::may_hold_a_handle(vol, self.conn, b));
