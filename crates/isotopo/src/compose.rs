@@ -1330,9 +1330,9 @@ fn joined_for_sure(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> bo
 
 /// Whether sample `b`, flipped to open a handle, may still be its passage (to hold, see
 /// [`compose_holding`]; the first test of [`take_back`]): on the 6-connected side, with two
-/// pieces of that side round it and one of the other (its numbers do not read `b` itself). Local, so cheap: a handle a wall closed beside `b` (joining the two pieces
-/// there) is let go; one closed far away is held no matter, which only leaves a face or two
-/// round `b` unmended.
+/// pieces of that side round it and one of the other (its numbers do not read `b` itself).
+/// Local, so cheap: a handle a wall closed beside `b` (joining the two pieces there) is let go;
+/// one closed far away is held no matter, which only leaves a face or two round `b` unmended.
 pub(crate) fn may_hold_a_handle(vol: &MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
     let side = conn == Connectivity::Six;
     within(vol, b) && state(vol, b) == side && side_numbers(vol, b, conn) == (2, 1)
@@ -1399,21 +1399,21 @@ fn one_component(
     if reach == Reach::Near && vol.dims.iter().any(|&n| n + 2 >= 1 << 21) {
         return None;
     }
-    let p = vol.dims.map(|n| n as u64 + 2);
+    // The volume and its padding; a sample's place in it is its key for the whole volume.
+    let grid = BoxCells::new([-1; 3], vol.dims.map(|n| n as i64));
     let key = |q: [i64; 3]| match reach {
         Reach::Near => q.iter().fold(0u64, |k, &c| (k << 21) | (c + 1) as u64),
-        Reach::Whole => ((q[2] + 1) as u64 * p[1] + (q[1] + 1) as u64) * p[0] + (q[0] + 1) as u64,
+        Reach::Whole => grid.index(q).map_or(u64::MAX, |c| c as u64),
     };
     let (budget, planes) = match reach {
         Reach::Near => (COMPONENT_BUDGET, COMPONENT_PLANES),
         Reach::Whole => (usize::MAX, i64::MAX),
     };
-    let inside = |q: [i64; 3]| (0..3).all(|c| q[c] >= -1 && q[c] <= vol.dims[c] as i64);
+    let inside = |q: [i64; 3]| grid.index(q).is_some();
     let near = |q: [i64; 3]| (q[2] - a[2]).abs() <= planes;
     // Whether each side's search met the plane limit: then its end proves nothing.
     let mut limited = [false; 2];
-    let padded = (p[0] * p[1] * p[2]) as usize;
-    let mut seen = [Seen::new(reach, padded), Seen::new(reach, padded)];
+    let mut seen = [Seen::new(reach, grid.len()), Seen::new(reach, grid.len())];
     let mut count = 2;
     let mut levels = [vec![a], vec![d]];
     seen[0].insert(key(a));

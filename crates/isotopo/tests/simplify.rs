@@ -1074,16 +1074,7 @@ fn tunnels_opening_on_the_volumes_high_faces_are_closed_within_it() {
         let tunnel = (y, z) == (7, 7) || (x, z) == (10, 5) || (x, y) == (5, 10);
         block && !tunnel
     };
-    let values: Vec<f32> = (0..n * n * n)
-        .map(|i| {
-            if inside(i % n, i / n % n, i / (n * n)) {
-                1.0
-            } else {
-                -1.0
-            }
-        })
-        .collect();
-    let vol = common::volume_from([n, n, n], &values);
+    let vol = InMemoryVolume::from_fn([n; 3], |x, y, z| if inside(x, y, z) { 1.0 } else { -1.0 });
     let mut failures = Vec::new();
     for mode in [Mode::FillOnly, Mode::CutOnly, Mode::Both] {
         for conn in BOTH {

@@ -577,8 +577,7 @@ impl<'a> Run<'a> {
                     if self.record(c) == 0 {
                         return Ok(());
                     }
-                    let options = self.compose_options(true);
-                    self.composed_at = Some((changed_sides(vol, &self.original), options));
+                    self.step_ended(vol, self.compose_options(true));
                     self.passes_while_changing(vol)?
                 }
             };
@@ -981,8 +980,13 @@ impl<'a> Run<'a> {
         }
         let c = self.composed(vol, another)?;
         let flipped = self.record(c);
-        self.composed_at = Some((changed_sides(vol, &self.original), at.1));
+        self.step_ended(vol, at.1);
         Ok(flipped)
+    }
+
+    /// Notes where a well-composed step run with `options` ended (see [`Run::composed_at`]).
+    fn step_ended(&mut self, vol: &mut MaskVolume, options: crate::compose::ComposeOptions) {
+        self.composed_at = Some((changed_sides(vol, &self.original), options));
     }
 
     /// What the well-composed step may do now (see [`Run::compose`]).
