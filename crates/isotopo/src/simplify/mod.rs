@@ -497,6 +497,9 @@ struct Run<'a> {
     /// last ended: run again on the same volume with the same options, the step flips nothing
     /// (it ends where a look flips nothing), so it is not run.
     composed_at: Option<StepEnd>,
+    /// What the well-composed steps found, as of the end of the step `composed_at` notes (see
+    /// [`crate::compose::Memory`]); none after a step whose flips were undone.
+    compose_memory: Option<crate::compose::Memory>,
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
@@ -528,6 +531,7 @@ impl<'a> Run<'a> {
             locked: FastMap::default(),
             opening: true,
             composed_at: None,
+            compose_memory: None,
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
@@ -563,7 +567,7 @@ impl<'a> Run<'a> {
                 None => self.passes_while_changing(vol)?,
                 // The volume is as the last pass left it: the round starts with the step.
                 Some(there) => {
-                    let c = self.composed(vol, true)?;
+                    let (c, memory) = self.composed(vol, true)?;
                     let known = c.flips.iter().all(|(q, _)| self.original.contains_key(q));
                     if known && changed_sides(vol, &self.original) == there {
                         for &(q, inside) in &c.flips {
@@ -577,7 +581,7 @@ impl<'a> Run<'a> {
                     if self.record(c) == 0 {
                         return Ok(());
                     }
-                    self.step_ended(vol, self.compose_options(true));
+                    self.step_ended(vol, self.compose_options(true), memory);
                     self.passes_while_changing(vol)?
                 }
             };
@@ -978,15 +982,21 @@ impl<'a> Run<'a> {
             ));
             return Ok(0);
         }
-        let c = self.composed(vol, another)?;
+        let (c, memory) = self.composed(vol, another)?;
         let flipped = self.record(c);
-        self.step_ended(vol, at.1);
+        self.step_ended(vol, at.1, memory);
         Ok(flipped)
     }
 
     /// Notes where a well-composed step run with `options` ended (see [`Run::composed_at`]).
-    fn step_ended(&mut self, vol: &mut MaskVolume, options: crate::compose::ComposeOptions) {
+    fn step_ended(
+        &mut self,
+        vol: &mut MaskVolume,
+        options: crate::compose::ComposeOptions,
+        memory: crate::compose::Memory,
+    ) {
         self.composed_at = Some((changed_sides(vol, &self.original), options));
+        self.compose_memory = Some(memory);
     }
 
     /// What the well-composed step may do now (see [`Run::compose`]).
@@ -1002,13 +1012,30 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]).
-    fn composed(&self, vol: &mut MaskVolume, another: bool) -> Result<crate::compose::Composition> {
+    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]), and what it
+    /// and the steps before found (for [`Run::step_ended`]).
+    fn composed(
+        &mut self,
+        vol: &mut MaskVolume,
+        another: bool,
+    ) -> Result<(crate::compose::Composition, crate::compose::Memory)> {
         let opts = self.compose_options(another);
+        // What the last step found holds where nothing changed since it ended.
+        let mut memory = self.compose_memory.take().unwrap_or_default();
+        if let Some((ended, _)) = &self.composed_at {
+            memory.changed_between(ended, &changed_sides(vol, &self.original));
+        }
         // The handles opened before and not closed since stay where they can be taken back.
         let mut held: Vec<[i64; 3]> = self.locked.keys().copied().collect();
         held.retain(|&b| crate::compose::may_hold_a_handle(vol, self.conn, b));
-        let c = crate::compose::compose_holding(vol, self.conn, opts, &held, self.progress)?;
+        let c = crate::compose::compose_holding(
+            vol,
+            self.conn,
+            opts,
+            &held,
+            &mut memory,
+            self.progress,
+        )?;
         // The first few opened samples locate them; a noisy scan opens thousands.
         let shown = &c.opened[..c.opened.len().min(8)];
         self.progress.trace(format_args!(
@@ -1020,7 +1047,7 @@ impl<'a> Run<'a> {
             c.opened.len(),
             if shown.len() < c.opened.len() { " ..." } else { "" }
         ));
-        Ok(c)
+        Ok((c, memory))
     }
 
     /// Keeps what the step did (see [`Run::compose`]); returns how many samples it flipped.

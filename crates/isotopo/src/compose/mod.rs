@@ -50,7 +50,9 @@
 //! counted: specks packed among other pieces with nowhere to go, threads tangled with
 //! themselves. The step looks over the volume plane by plane, then again near what it flipped
 //! until a look flips nothing (a cell left may become mendable once its neighbours change), so
-//! run again on its own output it flips nothing. (A checkerboard of single samples has more separate pieces than a
+//! run again on its own output it flips nothing. What each kind of change found for a cell left
+//! is remembered ([`Memory`]): it is not looked for again while nothing within that kind's
+//! reach changes, in later looks and, in `simplify`, in later steps (the same flips come out). (A checkerboard of single samples has more separate pieces than a
 //! well-composed set of its size can hold: no step can mend all of it.)
 
 use crate::error::Result;
@@ -62,6 +64,9 @@ use crate::topology::cases::Connectivity;
 use crate::topology::critical::{
     count_critical, critical, cube_bits, each_critical, CellKind, CriticalCounts,
 };
+
+mod memory;
+pub use memory::Memory;
 
 /// A unit face or cube, by its kind and lowest corner (volume-local, -1 ..= n - 1).
 type Cell = (CellKind, [i64; 3]);
@@ -129,13 +134,15 @@ pub fn compose(
     opts: ComposeOptions,
     progress: &dyn Progress,
 ) -> Result<Composition> {
-    compose_holding(vol, conn, opts, &[], progress)
+    compose_holding(vol, conn, opts, &[], &mut Memory::default(), progress)
 }
 
 /// [`compose`], holding the handles opened before (`held`: samples an earlier step flipped to
 /// open one, see [`Composition::opened`]) where they are, as it holds those it opens: no change
 /// alters the topological numbers of such a sample, so flipping it back still removes exactly
-/// its handle (`take_back`).
+/// its handle (`take_back`). `memory` is what earlier steps on this volume found (see
+/// [`Memory`]: the caller notes the samples changed since the last step ended); the step adds
+/// to it.
 ///
 /// ```text
 ///   a b .        a b #        b opened a handle between a and d; filling c to mend a face
@@ -147,9 +154,11 @@ pub(crate) fn compose_holding(
     conn: Connectivity,
     opts: ComposeOptions,
     held: &[[i64; 3]],
+    memory: &mut Memory,
     progress: &dyn Progress,
 ) -> Result<Composition> {
     let before = count_volume(vol);
+    memory.begin(conn, opts.only, held);
     let mut mender = Mender {
         conn,
         only: opts.only,
@@ -162,6 +171,7 @@ pub(crate) fn compose_holding(
         rewrites: 0,
         opened: Vec::new(),
         touched: Vec::new(),
+        memory: std::mem::take(memory),
     };
     // A cell left may become mendable once later mends change what lies round it: look again
     // near the last look's flips until a look flips nothing (each mend lowers the count, so
@@ -178,6 +188,9 @@ pub(crate) fn compose_holding(
         }
         near = Some(Near::of(&mender.touched));
     }
+    *memory = std::mem::take(&mut mender.memory);
+    let held: Vec<[i64; 3]> = mender.held.keys().copied().collect();
+    memory.end(&held, |cell| is_critical(vol, cell));
     let mut flips: Vec<([i64; 3], bool)> = mender
         .original
         .into_iter()
@@ -246,7 +259,7 @@ impl Near {
 
 /// The kinds of change that mend a critical cell, in the order they are tried (see the module
 /// notes).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Change {
     /// One simple flip (`Mender::best_single`).
     Single,
@@ -297,6 +310,8 @@ struct Mender {
     opened: Vec<[i64; 3]>,
     /// Samples flipped in the current look.
     touched: Vec<[i64; 3]>,
+    /// What was found for the cells left (see [`Memory`]).
+    memory: Memory,
 }
 
 impl Mender {
@@ -366,32 +381,60 @@ impl Mender {
     }
 
     /// The first kind of change, in [`Change::ALL`]'s order, that mends `cell`, and its flips;
-    /// none if that change would move an opened handle (see [`compose_holding`]).
+    /// none if that change would move an opened handle (see [`compose_holding`]). Kinds whose
+    /// answer is known (nothing changed near enough since they were tried, see [`Memory`]) are
+    /// not tried again.
     fn first_change(
         &mut self,
         vol: &mut MaskVolume,
         cell: Cell,
     ) -> Option<(Change, Vec<[i64; 3]>)> {
+        let recall = self.memory.recall(cell);
+        let mut none = 0u8;
         for change in Change::ALL {
-            let flips = match change {
-                Change::Single => self.best_single(vol, cell).map(|p| vec![p]),
-                Change::Pair => self.best_pair(vol, cell).map(|(p, q)| vec![p, q]),
-                Change::Move => self.relocate(vol, cell),
-                Change::Triple => self.best_triple(vol, cell),
-                Change::Dent => self.fill_dent(vol, cell),
-                Change::Swap => self.swap_handle(vol, cell),
-                Change::Rewrite => self.best_rewrite(vol, cell),
-                Change::Opening => self.open_handle(vol, cell).map(|b| vec![b]),
+            let known = recall.as_ref().and_then(|r| r.known(change));
+            self.memory.recalled += known.is_some() as u64;
+            let flips = match known {
+                Some(true) => None,
+                Some(false) => {
+                    self.memory.left(cell, none, Some(change));
+                    return None;
+                }
+                None => self.try_change(vol, cell, change),
             };
-            if let Some(flips) = flips {
-                // The cell is left while the handle stands (the kinds after would cost the most
-                // and seldom do better).
-                return self
-                    .holds_the_opened(vol, &flips)
-                    .then_some((change, flips));
+            let Some(flips) = flips else {
+                none |= 1 << change as u8;
+                continue;
+            };
+            // The cell is left while the handle stands (the kinds after would cost the most
+            // and seldom do better).
+            if self.holds_the_opened(vol, &flips) {
+                return Some((change, flips));
             }
+            self.memory.left(cell, none, Some(change));
+            return None;
         }
+        self.memory.left(cell, none, None);
         None
+    }
+
+    /// The flips of one kind of change that mend `cell`, if any.
+    fn try_change(
+        &mut self,
+        vol: &mut MaskVolume,
+        cell: Cell,
+        change: Change,
+    ) -> Option<Vec<[i64; 3]>> {
+        match change {
+            Change::Single => self.best_single(vol, cell).map(|p| vec![p]),
+            Change::Pair => self.best_pair(vol, cell).map(|(p, q)| vec![p, q]),
+            Change::Move => self.relocate(vol, cell),
+            Change::Triple => self.best_triple(vol, cell),
+            Change::Dent => self.fill_dent(vol, cell),
+            Change::Swap => self.swap_handle(vol, cell),
+            Change::Rewrite => self.best_rewrite(vol, cell),
+            Change::Opening => self.open_handle(vol, cell).map(|b| vec![b]),
+        }
     }
 
     /// Whether every held sample (see [`compose_holding`]) keeps its handle's passage with
@@ -427,6 +470,7 @@ impl Mender {
 
     fn flip(&mut self, vol: &mut MaskVolume, p: [i64; 3]) {
         self.touched.push(p);
+        self.memory.changed(p);
         let now = vol.get(p[0], p[1], p[2]);
         self.original.entry(p).or_insert(now);
         set(vol, p, !now);
@@ -1585,6 +1629,7 @@ mod tests {
             rewrites: 0,
             opened: Vec::new(),
             touched: Vec::new(),
+            memory: Memory::default(),
         }
     }
 
@@ -1837,6 +1882,103 @@ mod tests {
 
     /// `each_marked_subset` against every `k`-subset in lexicographic order, filtered: the same
     /// sets in the same order (a rewrite's ties are broken by that order), for random marks.
+    /// Smoothed noise (each sample's uniform value summed with its six neighbours, thresholded
+    /// at their mean): a sponge whose faces need every kind of change, and some none mends.
+    fn sponge_mask(n: [i64; 3], rng: &mut crate::test_rng::Rng) -> Vec<bool> {
+        let noise: Vec<f64> = (0..n[0] * n[1] * n[2]).map(|_| rng.unit()).collect();
+        let at = |x: i64, y: i64, z: i64| {
+            let c = |v: i64, k: usize| v.clamp(0, n[k] - 1);
+            noise[((c(z, 2) * n[1] + c(y, 1)) * n[0] + c(x, 0)) as usize]
+        };
+        let mut mask = Vec::new();
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    let sum = at(x, y, z)
+                        + at(x - 1, y, z)
+                        + at(x + 1, y, z)
+                        + at(x, y - 1, z)
+                        + at(x, y + 1, z)
+                        + at(x, y, z - 1)
+                        + at(x, y, z + 1);
+                    mask.push(sum > 3.5);
+                }
+            }
+        }
+        mask
+    }
+
+    /// A step that remembers what earlier steps found (see [`Memory`]) flips exactly what a
+    /// step that tries everything again flips, step after step, with samples changed between
+    /// steps near and far, handles opened and held samples that come and go.
+    #[test]
+    fn a_step_that_remembers_flips_what_one_trying_everything_flips() {
+        let mut rng = crate::test_rng::Rng(0x5eed_cafe_f00d);
+        let n = [26i64, 24, 20];
+        let (mut recalled, mut opened) = (0, 0);
+        for round in 0..6 {
+            let mask = sponge_mask(n, &mut rng);
+            let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
+            let only = [None, Some(true), Some(false)][round % 3];
+            let mut vols = [(); 2].map(|_| {
+                let mut vol = MaskVolume::new(n.map(|x| x as usize), Frame::identity());
+                for (i, &inside) in mask.iter().enumerate() {
+                    let i = i as i64;
+                    set(
+                        &mut vol,
+                        [i % n[0], i / n[0] % n[1], i / (n[0] * n[1])],
+                        inside,
+                    );
+                }
+                vol
+            });
+            let mut memories = [Memory::default(), Memory::default()];
+            memories[1].forget = true;
+            let mut held: Vec<[i64; 3]> = Vec::new();
+            for step in 0..3 {
+                let opts = ComposeOptions {
+                    only,
+                    open_handles: step % 2 == 0,
+                };
+                let mut steps = vols.iter_mut().zip(&mut memories).map(|(vol, memory)| {
+                    compose_holding(vol, conn, opts, &held, memory, &crate::progress::NoProgress)
+                        .unwrap()
+                });
+                let (c, fresh) = (steps.next().unwrap(), steps.next().unwrap());
+                let what = format!("round {round}, step {step}");
+                let first_apart = c.flips.iter().zip(&fresh.flips).position(|(a, b)| a != b);
+                assert!(
+                    c.flips == fresh.flips,
+                    "{what}: {} flips against {}, apart from flip {first_apart:?}",
+                    c.flips.len(),
+                    fresh.flips.len()
+                );
+                assert_eq!(c.opened, fresh.opened, "{what}");
+                assert_eq!(
+                    (c.left, c.swaps, c.rewrites),
+                    (fresh.left, fresh.swaps, fresh.rewrites)
+                );
+                opened += c.opened.len();
+                // Hold half of what was opened, let go of half of what was held.
+                held = held.iter().chain(&c.opened).copied().step_by(2).collect();
+                held.retain(|&b| may_hold_a_handle(&vols[0], conn, b));
+                // Flip a few samples, far apart: most cells left stay far from them.
+                for _ in 0..1 + step {
+                    let p = [0, 1, 2].map(|k| rng.below(n[k] as u64) as i64);
+                    for (vol, memory) in vols.iter_mut().zip(&mut memories) {
+                        toggle(vol, p);
+                        memory.changed(p);
+                    }
+                }
+            }
+            recalled += memories[0].recalled;
+        }
+        assert!(
+            recalled > 1000 && opened > 0,
+            "{recalled} answers recalled, {opened} opened"
+        );
+    }
+
     #[test]
     fn marked_subsets_are_every_subset_with_a_mark_in_order() {
         let mut rng = crate::test_rng::Rng(0x05eb_5e75);
