@@ -1,9 +1,9 @@
 //! What the well-composed step learnt of the cells it left, kept from one look and one step to
 //! the next.
 //!
-//! Each kind of change reads the volume only near the cell it mends (a rewrite within a few
-//! samples, a speck's new place within [`LOCAL_READ`], a swap's path within [`SWAP_READ`]); only
-//! an opening reads far (whether its two corners are one component). So a kind that found
+//! Each kind of change reads the volume only near the cell it mends (see [`READS`]: a rewrite
+//! within 6 samples, a speck's new place within 13, a swap's path within 42); only an opening
+//! reads far (whether its two corners are one component). So a kind that found
 //! nothing for a cell finds nothing again while no sample within its reach changes, and a
 //! kind whose flips were refused (they would move a held handle) is refused again. A step on a
 //! volume a pass changed in a few places, or a look after a few flips, then tries again only
@@ -13,9 +13,9 @@
 //!
 //! ```text
 //!   . . . . . . . . .      x: a cell left, last tried at clock 5
-//!   . . . x . . . . .      o: a sample flipped at clock 9, beyond LOCAL_READ of x but within
-//!   . . . . . . . o .         SWAP_READ: x's rewrites are known to find nothing, its swap is
-//!   . . . . . . . . .         looked for again
+//!   . . . x . . . . .      o: a sample flipped at clock 9, beyond a rewrite's reach of x but
+//!   . . . . . . . o .         within a swap's: x's rewrites are known to find nothing, its
+//!   . . . . . . . . .         swap is looked for again
 //! ```
 
 use super::{Cell, Change};

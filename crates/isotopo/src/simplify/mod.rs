@@ -567,7 +567,8 @@ impl<'a> Run<'a> {
                 None => self.passes_while_changing(vol)?,
                 // The volume is as the last pass left it: the round starts with the step.
                 Some(there) => {
-                    let (c, memory) = self.composed(vol, true)?;
+                    let sides = changed_sides(vol, &self.original);
+                    let (c, memory) = self.composed(vol, true, &sides)?;
                     let known = c.flips.iter().all(|(q, _)| self.original.contains_key(q));
                     if known && changed_sides(vol, &self.original) == there {
                         for &(q, inside) in &c.flips {
@@ -982,7 +983,7 @@ impl<'a> Run<'a> {
             ));
             return Ok(0);
         }
-        let (c, memory) = self.composed(vol, another)?;
+        let (c, memory) = self.composed(vol, another, &at.0)?;
         let flipped = self.record(c);
         self.step_ended(vol, at.1, memory);
         Ok(flipped)
@@ -1012,18 +1013,20 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// The well-composed step on `vol`, not yet recorded (see [`Run::compose`]), and what it
-    /// and the steps before found (for [`Run::step_ended`]).
+    /// The well-composed step on `vol`, whose samples changed are `sides` (see
+    /// [`changed_sides`]), not yet recorded (see [`Run::compose`]), and what it and the steps
+    /// before found (for [`Run::step_ended`]).
     fn composed(
         &mut self,
         vol: &mut MaskVolume,
         another: bool,
+        sides: &[([i64; 3], bool)],
     ) -> Result<(crate::compose::Composition, crate::compose::Memory)> {
         let opts = self.compose_options(another);
         // What the last step found holds where nothing changed since it ended.
         let mut memory = self.compose_memory.take().unwrap_or_default();
         if let Some((ended, _)) = &self.composed_at {
-            memory.changed_between(ended, &changed_sides(vol, &self.original));
+            memory.changed_between(ended, sides);
         }
         // The handles opened before and not closed since stay where they can be taken back.
         let mut held: Vec<[i64; 3]> = self.locked.keys().copied().collect();
