@@ -203,7 +203,9 @@ fn peel_centre(points: &[[f64; 3]], partner: &[Vertex]) -> [f64; 3] {
 }
 
 /// The loop's points moved along its partner by `j` of [`PEEL_ALONG`] steps from where the
-/// partner crosses the loop (`centre`), and where that step lands.
+/// partner crosses the loop (`centre`), and where that step lands. They move by whole samples
+/// (the step's shift rounded towards zero: edge midpoints are half a sample off on one axis), so
+/// the box round them is the loop's box moved, not grown by a plane where the shift is a half.
 fn moved_along(
     points: &[[f64; 3]],
     centre: [f64; 3],
@@ -217,7 +219,7 @@ fn moved_along(
         })
         .unwrap_or(0);
     let at = partner[(start + j * partner.len() / PEEL_ALONG) % partner.len()].midpoint();
-    let shift: [f64; 3] = std::array::from_fn(|k| at[k] - centre[k]);
+    let shift: [f64; 3] = std::array::from_fn(|k| (at[k] - centre[k]).trunc());
     let moved = points
         .iter()
         .map(|p| std::array::from_fn(|k| p[k] + shift[k]))
@@ -758,6 +760,61 @@ mod tests {
             names(&walls_for(&lp, op, conn, &partner, WallReach::Along)),
             want
         );
+    }
+
+    /// A `peeled_along` wall's box is the loop's box moved by whole samples, never further than
+    /// the partner's step from where it crosses the loop: the loop's points and the partner's are
+    /// edge midpoints, and a shift by half a sample would grow the box by one on that axis (the
+    /// embryo cut at connectivity 26 had such a wall spread over six planes, its loop's box five).
+    #[test]
+    fn a_box_moved_along_the_partner_is_the_loops_box_moved_by_whole_samples() {
+        let vol = MaskVolume::new([40, 40, 40], Frame::identity());
+        // A square loop of x and y edges in the plane z = 10, and a partner of x, y and z edges
+        // through its vertex (10.5, 10, 10), climbing and turning so every step is half a sample
+        // off on some axis.
+        let lp: Vec<Vertex> = [
+            ([10, 10, 10], 0),
+            ([11, 10, 10], 1),
+            ([11, 11, 10], 1),
+            ([10, 12, 10], 0),
+            ([9, 11, 10], 1),
+            ([9, 10, 10], 1),
+        ]
+        .map(|(p, axis)| Vertex { p, axis })
+        .to_vec();
+        let partner: Vec<Vertex> = [
+            ([10, 10, 10], 0),
+            ([10, 10, 10], 2),
+            ([10, 10, 11], 1),
+            ([10, 11, 11], 2),
+            ([10, 11, 12], 0),
+            ([11, 11, 12], 2),
+            ([11, 11, 13], 1),
+            ([11, 12, 13], 0),
+        ]
+        .map(|(p, axis)| Vertex { p, axis })
+        .to_vec();
+        let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
+        let centre = peel_centre(&points, &partner);
+        assert_eq!(centre, [10.5, 10.0, 10.0]);
+        let (_, home) = box_region(&vol, &points, PEEL_BOX_MARGIN);
+        for j in 1..PEEL_ALONG {
+            let (moved, at) = moved_along(&points, centre, &partner, j);
+            let (_, b) = box_region(&vol, &moved, PEEL_BOX_MARGIN);
+            for k in 0..3 {
+                let shift = b.min[k] - home.min[k];
+                assert_eq!(
+                    b.max[k] - home.max[k],
+                    shift,
+                    "step {j}, axis {k}: {b:?} {home:?}"
+                );
+                assert!(
+                    shift.abs() as f64 <= (at[k] - centre[k]).abs(),
+                    "step {j}, axis {k}"
+                );
+                assert!(b.min[k] as f64 <= at[k] && at[k] <= b.max[k] as f64);
+            }
+        }
     }
 
     #[test]
