@@ -892,11 +892,11 @@ mod tests {
         assert_eq!(at4, [5.0, 6.5, 0.0]);
         let (_, at7) = moved_along(&points, centre, &partner, 7);
         assert_eq!(at7, [5.0, 1.5, 0.0], "round the partner");
+        // Moved by whole samples: 0.1 and 4.1 along y.
         for (k, p) in points.iter().enumerate() {
-            for a in 0..3 {
-                assert!((moved[k][a] - (p[a] + at[a] - centre[a])).abs() < 1e-12);
-                assert!((moved4[k][a] - (p[a] + at4[a] - centre[a])).abs() < 1e-12);
-            }
+            let (a, b) = (moved[k], moved4[k]);
+            assert_eq!((a[0], a[1], a[2]), (p[0], p[1], p[2]));
+            assert_eq!((b[0], b[1], b[2]), (p[0], p[1] + 4.0, p[2]));
         }
     }
 
