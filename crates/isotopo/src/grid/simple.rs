@@ -194,14 +194,18 @@ pub(crate) struct SetTest {
     cells: BoxCells,
     conn: Connectivity,
     inside: Vec<bool>,
-    /// The numbers of `cells`' samples on its outer layer.
-    shell: Vec<u32>,
-    before: BoxShape,
+    /// Each region sample's number in `cells`.
+    region_cells: Vec<u32>,
+    /// The inside's pieces beyond the region, then the outside's.
+    sides: [Exterior; 2],
+    /// Room for the union-find of one side's pieces (reused by every set).
+    root: Vec<u32>,
 }
 
 impl SetTest {
     pub(crate) fn new(vol: &MaskVolume, lo: [i64; 3], hi: [i64; 3], conn: Connectivity) -> Self {
         let cells = BoxCells::new(lo.map(|c| c - SET_MARGIN), hi.map(|c| c + SET_MARGIN));
+        let region = BoxCells::new(lo, hi);
         let dims = vol.dims.map(|n| n as i64);
         let inside: Vec<bool> = (0..cells.len())
             .map(|c| {
@@ -209,19 +213,31 @@ impl SetTest {
                 (0..3).all(|k| q[k] >= 0 && q[k] < dims[k]) && vol.get(q[0], q[1], q[2])
             })
             .collect();
-        let shell: Vec<u32> = (0..cells.len())
-            .filter(|&c| cells.on_shell(c))
+        let region_cells: Vec<u32> = (0..region.len())
+            .filter_map(|r| cells.index(region.sample(r)))
             .map(|c| c as u32)
             .collect();
-        let before = BoxShape::of(&cells, &shell, &inside, conn);
-        SetTest {
-            region: BoxCells::new(lo, hi),
+        let side = |s: usize| {
+            let six = (s == 0) == (conn == Connectivity::Six);
+            Exterior::new(&cells, &region, &region_cells, &inside, s == 0, six)
+        };
+        let sides = [side(0), side(1)];
+        let mut test = SetTest {
+            region,
             cells,
             conn,
             inside,
-            shell,
-            before,
+            region_cells,
+            sides,
+            root: Vec::new(),
+        };
+        // The shape before: the same count with nothing flipped.
+        for s in 0..2 {
+            let (numbers, enclosed) = test.shape(s);
+            test.sides[s].before = numbers;
+            test.sides[s].enclosed = enclosed;
         }
+        test
     }
 
     /// Whether flipping all of `flips` (samples of the region) keeps the topology.
@@ -235,7 +251,8 @@ impl SetTest {
         let index: Vec<usize> = flips.iter().filter_map(|&p| self.cells.index(p)).collect();
         // The Euler characteristic first, from the cells that have a flip as a corner alone
         // (their lowest corners within a sample below each flip): most sets fail there, and it
-        // costs a few dozen samples against the whole box's pieces.
+        // costs a few dozen samples against the box's pieces. (That of the 6-connected side:
+        // by Alexander duality the other side's changes the same.)
         let mut lowest: Vec<[i64; 3]> = flips
             .iter()
             .flat_map(|p| {
@@ -247,95 +264,186 @@ impl SetTest {
         let euler_before = euler_6(&self.cells, &self.inside, six_side, &lowest);
         let toggle = |inside: &mut Vec<bool>| index.iter().for_each(|&c| inside[c] = !inside[c]);
         toggle(&mut self.inside);
+        // The outside is counted only if the inside agrees.
         let keeps = euler_6(&self.cells, &self.inside, six_side, &lowest) == euler_before
-            && self
-                .before
-                .is_of(&self.cells, &self.shell, &self.inside, self.conn);
+            && (0..2).all(|s| {
+                let (numbers, enclosed) = self.shape(s);
+                numbers == self.sides[s].before && enclosed == self.sides[s].enclosed
+            });
         toggle(&mut self.inside);
         keeps
     }
-}
 
-/// What [`SetTest`] compares: for each side, how its pieces in the box join the shell's
-/// samples (each shell sample of that side numbered by its piece, in order of first meeting)
-/// and how many pieces do not reach the shell. (The Euler characteristic, of the 6-connected side,
-/// is compared round the flips alone: by Alexander duality the other side's changes the same.)
-struct BoxShape {
-    shell: [Vec<u32>; 2],
-    enclosed: [usize; 2],
-}
-
-impl BoxShape {
-    /// `shell`: the numbers of the box's samples on its outer layer, in order.
-    fn of(cells: &BoxCells, shell: &[u32], inside: &[bool], conn: Connectivity) -> BoxShape {
-        let side = |s: usize| Self::side(cells, shell, inside, conn, s);
-        let ((inside_shell, inside_enclosed), (outside_shell, outside_enclosed)) =
-            (side(0), side(1));
-        BoxShape {
-            shell: [inside_shell, outside_shell],
-            enclosed: [inside_enclosed, outside_enclosed],
-        }
-    }
-
-    /// Whether the box's shape is this one; the outside is labelled only if the inside agrees.
-    fn is_of(&self, cells: &BoxCells, shell: &[u32], inside: &[bool], conn: Connectivity) -> bool {
-        (0..2).all(|s| {
-            let (numbers, enclosed) = Self::side(cells, shell, inside, conn, s);
-            numbers == self.shell[s] && enclosed == self.enclosed[s]
-        })
-    }
-
-    /// Side `s` (0 the inside, 1 the outside): its shell samples numbered by piece, and how
-    /// many pieces do not reach the shell.
-    fn side(
-        cells: &BoxCells,
-        shell: &[u32],
-        inside: &[bool],
-        conn: Connectivity,
-        s: usize,
-    ) -> (Vec<u32>, usize) {
+    /// Side `s`'s shape in the box as it is (0 the inside, 1 the outside): the pieces beyond
+    /// the region that reach the shell, numbered by the piece of the box they lie in (in order
+    /// of first meeting), and how many pieces of the box do not reach the shell. The pieces
+    /// beyond the region were labelled once; only the region's samples are joined here, to
+    /// each other and to the pieces they touch.
+    fn shape(&mut self, s: usize) -> (Vec<u32>, usize) {
         let side = s == 0;
-        let six = side == (conn == Connectivity::Six);
-        let (pieces, piece) = label(cells, inside, side, six);
-        let mut number = vec![u32::MAX; pieces];
-        let mut numbers = Vec::new();
-        let mut reaching = 0;
-        for &c in shell {
-            let p = piece[c as usize];
-            if p == u32::MAX {
+        let ext = &self.sides[s];
+        let nodes = ext.pieces + self.region_cells.len();
+        self.root.clear();
+        self.root.extend(0..nodes as u32);
+        let root = &mut self.root;
+        let (region, inside, region_cells) = (&self.region, &self.inside, &self.region_cells);
+        let of_side = |r: usize| inside[region_cells[r] as usize] == side;
+        let mut pieces = ext.pieces;
+        for r in 0..region_cells.len() {
+            if !of_side(r) {
                 continue;
             }
-            if number[p as usize] == u32::MAX {
-                number[p as usize] = reaching;
-                reaching += 1;
+            pieces += 1;
+            let node = ext.pieces + r;
+            let q = region.sample(r);
+            for d in earlier_offsets(ext.six) {
+                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+                if let Some(m) = region.index(n).filter(|&m| of_side(m)) {
+                    pieces -= usize::from(join(root, node, ext.pieces + m));
+                }
             }
-            numbers.push(number[p as usize]);
+            for &e in ext.touching(r) {
+                pieces -= usize::from(join(root, node, e as usize));
+            }
         }
+        let mut number = vec![u32::MAX; nodes];
+        let mut reaching = 0;
+        let numbers = ext
+            .on_shell
+            .iter()
+            .map(|&e| {
+                let r = find(root, e as usize);
+                if number[r] == u32::MAX {
+                    number[r] = reaching;
+                    reaching += 1;
+                }
+                number[r]
+            })
+            .collect();
         (numbers, pieces - reaching as usize)
     }
 }
 
-/// The pieces of `side` in the box (6- or 26-adjacent samples): how many, and each sample's
-/// piece (`u32::MAX` for the other side), numbered by their first sample. One scan, x fastest,
-/// joins each sample to its neighbours met before it (union-find, the lower root kept).
-fn label(cells: &BoxCells, inside: &[bool], side: bool, six: bool) -> (usize, Vec<u32>) {
+/// One side's pieces in [`SetTest`]'s box beyond the region where flips may be: flips change
+/// only the region, so these are labelled once and each set joins the region's samples to them.
+///
+/// ```text
+///   +-------------+   shell
+///   |  a a . . b  |   a, b: pieces beyond the region, labelled once (a and b may be one
+///   |  a f f f b  |         piece of the box once the region's samples join them)
+///   |  . f f f b  |   f: the region, where flips may be
+///   +-------------+
+/// ```
+struct Exterior {
+    /// Whether the side is 6-connected (else 26).
+    six: bool,
+    /// How many pieces.
+    pieces: usize,
+    /// The pieces the shell's samples of the side lie in, each once, in order of first meeting.
+    on_shell: Vec<u32>,
+    /// For region sample `r`, the pieces it touches are `touch[start[r]..start[r + 1]]`.
+    start: Vec<u32>,
+    touch: Vec<u32>,
+    /// The shape before any flip (see [`SetTest::shape`]).
+    before: Vec<u32>,
+    enclosed: usize,
+}
+
+impl Exterior {
+    fn new(
+        cells: &BoxCells,
+        region: &BoxCells,
+        region_cells: &[u32],
+        inside: &[bool],
+        side: bool,
+        six: bool,
+    ) -> Exterior {
+        let mut in_region = vec![false; cells.len()];
+        region_cells
+            .iter()
+            .for_each(|&c| in_region[c as usize] = true);
+        let (pieces, piece) = label(cells, six, |c| !in_region[c] && inside[c] == side);
+        let mut on_shell = Vec::new();
+        let mut met = vec![false; pieces];
+        for c in (0..cells.len()).filter(|&c| cells.on_shell(c)) {
+            let p = piece[c];
+            if p != u32::MAX && !met[p as usize] {
+                met[p as usize] = true;
+                on_shell.push(p);
+            }
+        }
+        let offsets = neighbourhood().offsets.into_iter();
+        let adjacent: Vec<[i64; 3]> = offsets.filter(|d| !six || l1(*d) == 1).collect();
+        let (mut start, mut touch) = (vec![0], Vec::new());
+        for r in 0..region.len() {
+            let q = region.sample(r);
+            let first = touch.len();
+            for d in &adjacent {
+                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+                if let Some(p) = cells.index(n).map(|c| piece[c]) {
+                    if p != u32::MAX && !touch[first..].contains(&p) {
+                        touch.push(p);
+                    }
+                }
+            }
+            start.push(touch.len() as u32);
+        }
+        Exterior {
+            six,
+            pieces,
+            on_shell,
+            start,
+            touch,
+            before: Vec::new(),
+            enclosed: 0,
+        }
+    }
+
+    /// The pieces region sample `r` touches.
+    fn touching(&self, r: usize) -> &[u32] {
+        &self.touch[self.start[r] as usize..self.start[r + 1] as usize]
+    }
+}
+
+fn l1(d: [i64; 3]) -> i64 {
+    d.iter().map(|c| c.abs()).sum()
+}
+
+/// The neighbours met before a sample in a scan x fastest, then y, then z: its face
+/// neighbours (6-adjacency) or all 26.
+fn earlier_offsets(six: bool) -> &'static [[i64; 3]] {
+    static EARLIER: std::sync::OnceLock<[Vec<[i64; 3]>; 2]> = std::sync::OnceLock::new();
+    let both = EARLIER.get_or_init(|| {
+        let of = |six: bool| -> Vec<[i64; 3]> {
+            neighbourhood()
+                .offsets
+                .into_iter()
+                .filter(|d| (d[2], d[1], d[0]) < (0, 0, 0))
+                .filter(|d| !six || l1(*d) == 1)
+                .collect()
+        };
+        [of(false), of(true)]
+    });
+    &both[usize::from(six)]
+}
+
+/// The pieces of the box's samples that are `member`s (6- or 26-adjacent samples): how many,
+/// and each sample's piece (`u32::MAX` for others), numbered by their first sample. One scan,
+/// x fastest, joins each sample to its neighbours met before it (union-find, the lower root
+/// kept).
+fn label(cells: &BoxCells, six: bool, member: impl Fn(usize) -> bool) -> (usize, Vec<u32>) {
     let size = cells.size.map(|n| n as i64);
-    let earlier: Vec<[i64; 3]> = neighbourhood()
-        .offsets
-        .into_iter()
-        .filter(|d| (d[2], d[1], d[0]) < (0, 0, 0))
-        .filter(|d| !six || d.iter().map(|c| c.abs()).sum::<i64>() == 1)
-        .collect();
+    let earlier = earlier_offsets(six);
     let step: Vec<usize> = earlier
         .iter()
         .map(|d| (-((d[2] * size[1] + d[1]) * size[0] + d[0])) as usize)
         .collect();
-    let mut root = vec![u32::MAX; inside.len()];
+    let mut root = vec![u32::MAX; cells.len()];
     let mut c = 0;
     for z in 0..size[2] {
         for y in 0..size[1] {
             for x in 0..size[0] {
-                if inside[c] == side {
+                if member(c) {
                     root[c] = c as u32;
                     // Away from the box's faces every earlier neighbour is in it (+1 steps
                     // come with a -1 step along a slower axis).
@@ -348,7 +456,7 @@ fn label(cells: &BoxCells, inside: &[bool], side: bool, six: bool) -> (usize, Ve
                                 && within(z + d[2], size[2])
                         {
                             let n = c - back;
-                            if inside[n] == side && root[n] != root[c] {
+                            if root[n] != u32::MAX && root[n] != root[c] {
                                 join(&mut root, c, n);
                             }
                         }
@@ -358,9 +466,9 @@ fn label(cells: &BoxCells, inside: &[bool], side: bool, six: bool) -> (usize, Ve
             }
         }
     }
-    let mut piece = vec![u32::MAX; inside.len()];
+    let mut piece = vec![u32::MAX; cells.len()];
     let mut pieces = 0;
-    for c in 0..inside.len() {
+    for c in 0..cells.len() {
         if root[c] != u32::MAX {
             let r = find(&mut root, c);
             // The root is the piece's first sample, numbered already unless it is this one.
@@ -381,11 +489,12 @@ fn find(root: &mut [u32], mut c: usize) -> usize {
     c
 }
 
-/// Joins the sets of `a` and `b` under the lower root.
-fn join(root: &mut [u32], a: usize, b: usize) {
+/// Joins the sets of `a` and `b` under the lower root; whether they were apart.
+fn join(root: &mut [u32], a: usize, b: usize) -> bool {
     let (ra, rb) = (find(root, a), find(root, b));
     let (lo, hi) = (ra.min(rb), ra.max(rb));
     root[hi] = lo as u32;
+    lo != hi
 }
 
 /// Euler characteristic of the cubical complex of `side` counted over the cells whose lowest
@@ -512,6 +621,84 @@ mod tests {
             toggle(&mut vol, p);
         }
         assert!(!test_round(&vol, &flips, conn));
+    }
+
+    /// The whole box labelled, each side's shell samples numbered by piece (in order of first
+    /// meeting), and the pieces not reaching the shell counted: what [`SetTest`] compares, the
+    /// slow way (it labels the pieces beyond the region once and joins the region to them).
+    fn whole_box_shape(test: &SetTest) -> [(Vec<u32>, usize); 2] {
+        std::array::from_fn(|s| {
+            let six = (s == 0) == (test.conn == Connectivity::Six);
+            let (pieces, piece) = label(&test.cells, six, |c| test.inside[c] == (s == 0));
+            let mut number = vec![u32::MAX; pieces];
+            let (mut numbers, mut reaching) = (Vec::new(), 0);
+            for c in (0..test.cells.len()).filter(|&c| test.cells.on_shell(c)) {
+                let p = piece[c];
+                if p != u32::MAX {
+                    if number[p as usize] == u32::MAX {
+                        number[p as usize] = reaching;
+                        reaching += 1;
+                    }
+                    numbers.push(number[p as usize]);
+                }
+            }
+            (numbers, pieces - reaching as usize)
+        })
+    }
+
+    /// On random volumes, sets of one to three flips: [`SetTest`] accepts exactly the sets
+    /// that keep the whole box's Euler characteristic and its shape labelled from scratch (each
+    /// side's shell samples grouped the same, as many pieces enclosed).
+    #[test]
+    fn the_set_test_agrees_with_labelling_the_whole_box() {
+        let mut rng = crate::test_rng::Rng(0x51ab_1e5e_7000_0001);
+        let (mut accepted, mut refused) = (0, 0);
+        for round in 0..16 {
+            let n = 14;
+            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
+            let density = [30, 45, 55, 70][round % 4];
+            for z in 0..n {
+                for y in 0..n {
+                    for x in 0..n {
+                        vol.set(x, y, z, rng.below(100) < density);
+                    }
+                }
+            }
+            let conn = BOTH[round % 2];
+            let six_side = conn == Connectivity::Six;
+            // A region like a rewrite's (six samples wide), some beyond the volume's faces.
+            let c: [i64; 3] = std::array::from_fn(|_| rng.below(n as u64 - 3) as i64);
+            let (lo, hi) = (c.map(|v| v - 1), c.map(|v| v + 4));
+            let mut test = SetTest::new(&vol, lo, hi, conn);
+            let every: Vec<[i64; 3]> = (0..test.cells.len())
+                .map(|i| test.cells.sample(i))
+                .collect();
+            let shape_before = whole_box_shape(&test);
+            let euler_before = euler_6(&test.cells, &test.inside, six_side, &every);
+            for _ in 0..400 {
+                let k = 1 + rng.below(3) as usize;
+                let mut set: Vec<[i64; 3]> = Vec::new();
+                while set.len() < k {
+                    let q: [i64; 3] = std::array::from_fn(|i| lo[i] + rng.below(6) as i64);
+                    if !set.contains(&q) {
+                        set.push(q);
+                    }
+                }
+                let got = test.keeps(&set);
+                let index: Vec<usize> = set.iter().filter_map(|&p| test.cells.index(p)).collect();
+                index.iter().for_each(|&i| test.inside[i] = !test.inside[i]);
+                let want = euler_6(&test.cells, &test.inside, six_side, &every) == euler_before
+                    && whole_box_shape(&test) == shape_before;
+                index.iter().for_each(|&i| test.inside[i] = !test.inside[i]);
+                assert_eq!(got, want, "round {round}: {set:?}");
+                accepted += usize::from(got);
+                refused += usize::from(!got);
+            }
+        }
+        assert!(
+            accepted > 300 && refused > 300,
+            "{accepted} accepted, {refused} refused"
+        );
     }
 
     /// On random volumes: every simple flip (Bertrand and Malandain's numbers, an independent
