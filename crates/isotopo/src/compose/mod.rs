@@ -1134,12 +1134,11 @@ impl Mender {
                 .collect();
             let is_corner: Vec<bool> = near.iter().map(|p| corners.contains(p)).collect();
             let count = count.get_or_insert_with(|| LocalCount::new(vol, lo, hi));
+            let flips: Vec<Flip> = near.iter().map(|&p| count.flip(p)).collect();
             // Sets as indices into `near` (thousands are tried: no allocation for each).
             let mut lowering: Vec<(i64, [usize; 3])> = Vec::new();
             each_marked_subset(&is_corner, k, &mut |set| {
-                let mut flips = [[0; 3]; 3];
-                set.iter().zip(&mut flips).for_each(|(&i, f)| *f = near[i]);
-                let d = count.change(&flips[..k]);
+                let d = count.change(&near, &flips, set);
                 if d < 0 {
                     let mut at = [0; 3];
                     at[..k].copy_from_slice(set);
@@ -1192,25 +1191,42 @@ impl LocalCount {
         LocalCount { cubes, bits }
     }
 
-    /// The change in critical cells if `flips` are flipped (see [`change`]): only the cubes
-    /// with a flip as a corner, and the cells they own (the cube and its three faces at its
-    /// lowest corner), can change. A flip `p` is corner `k` of the cube at `p - k`.
-    fn change(&self, flips: &[[i64; 3]]) -> i64 {
+    /// Sample `p`'s part in the count (it must lie in the region the count was made for).
+    fn flip(&self, p: [i64; 3]) -> Flip {
+        let cubes: [u32; 8] = std::array::from_fn(|k| {
+            let d = corner_offset(k as u8);
+            let c = [p[0] - d[0], p[1] - d[1], p[2] - d[2]];
+            let i = self.cubes.index(c);
+            i.expect("flips lie in the region the count was made for") as u32
+        });
+        let alone = (0..8)
+            .map(|k| {
+                let bits = self.bits[cubes[k] as usize];
+                owned_critical(bits ^ 1 << k) - owned_critical(bits)
+            })
+            .sum();
+        Flip { cubes, alone }
+    }
+
+    /// The change in critical cells if the samples `set` (indices into `samples`, whose parts
+    /// are `flips`) are flipped (see [`change`]): only the cubes with a flip as a corner, and
+    /// the cells they own (the cube and its three faces at its lowest corner), can change. Flips
+    /// more than a sample apart on some axis share no cube: their changes add up.
+    fn change(&self, samples: &[[i64; 3]], flips: &[Flip], set: &[usize]) -> i64 {
         // A rewrite's three flips at most, thousands of sets a cell: no allocation.
-        assert!(flips.len() <= 3, "a rewrite flips at most three samples");
-        let (mut flipped, mut n) = ([(0usize, 0u8); 24], 0);
-        for p in flips {
-            for k in 0..8 {
-                let d = corner_offset(k);
-                let c = [p[0] - d[0], p[1] - d[1], p[2] - d[2]];
-                let i = self
-                    .cubes
-                    .index(c)
-                    .expect("flips lie in the region the count was made for");
-                match flipped[..n].iter_mut().find(|(j, _)| *j == i) {
+        assert!(set.len() <= 3, "a rewrite flips at most three samples");
+        let apart = |a: usize, b: usize| (0..3).any(|c| (samples[a][c] - samples[b][c]).abs() > 1);
+        let all_apart = (0..set.len()).all(|i| (i + 1..set.len()).all(|j| apart(set[i], set[j])));
+        if all_apart {
+            return set.iter().map(|&i| flips[i].alone).sum();
+        }
+        let (mut flipped, mut n) = ([(0u32, 0u8); 24], 0);
+        for &i in set {
+            for (k, &cube) in flips[i].cubes.iter().enumerate() {
+                match flipped[..n].iter_mut().find(|(j, _)| *j == cube) {
                     Some((_, mask)) => *mask ^= 1 << k,
                     None => {
-                        flipped[n] = (i, 1 << k);
+                        flipped[n] = (cube, 1 << k);
                         n += 1;
                     }
                 }
@@ -1218,9 +1234,19 @@ impl LocalCount {
         }
         flipped[..n]
             .iter()
-            .map(|&(i, mask)| owned_critical(self.bits[i] ^ mask) - owned_critical(self.bits[i]))
+            .map(|&(i, mask)| {
+                let bits = self.bits[i as usize];
+                owned_critical(bits ^ mask) - owned_critical(bits)
+            })
             .sum()
     }
+}
+
+/// A sample's part in a [`LocalCount`]: the cubes it is a corner of (corner `k` of the `k`-th,
+/// as numbers in the count's box) and the change in critical cells its flip alone makes.
+struct Flip {
+    cubes: [u32; 8],
+    alone: i64,
 }
 
 /// How many of the cells a cube owns (itself and its three faces at its lowest corner) are
@@ -1706,6 +1732,67 @@ mod tests {
         assert!(!is_critical(&vol, cell));
         assert_eq!(betti(&vol), before);
         assert!(count_volume(&vol).total() < critical);
+    }
+
+    /// A rewrite's count of the critical cells round a set of flips (a copy of the cubes'
+    /// corners; flips apart adding up) is the count made on the volume itself: random volumes,
+    /// random sets of one to three flips, adjacent or not, in a region touching the volume's
+    /// faces or not.
+    #[test]
+    fn a_rewrites_local_count_is_the_count_on_the_volume() {
+        let mut rng = crate::test_rng::Rng(0x10ca_1c07);
+        let n = 12;
+        let (mut apart, mut sharing) = (0, 0);
+        for round in 0..24 {
+            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
+            let density = [30, 50, 70][round % 3];
+            for z in 0..n {
+                for y in 0..n {
+                    for x in 0..n {
+                        set(
+                            &mut vol,
+                            [x, y, z].map(|c| c as i64),
+                            rng.below(100) < density,
+                        );
+                    }
+                }
+            }
+            let c: [i64; 3] = std::array::from_fn(|_| rng.below(n as u64 - 3) as i64);
+            let (lo, hi) = (c.map(|v| v - 1), c.map(|v| v + 4));
+            let count = LocalCount::new(&vol, lo, hi);
+            let samples: Vec<[i64; 3]> = (0..40)
+                .map(|_| std::array::from_fn(|k| c[k] + rng.below(4) as i64))
+                .filter(|p: &[i64; 3]| p.iter().all(|&v| v < n as i64))
+                .collect();
+            let flips: Vec<Flip> = samples.iter().map(|&p| count.flip(p)).collect();
+            for _ in 0..200 {
+                let k = 1 + rng.below(3) as usize;
+                let mut chosen: Vec<usize> = Vec::new();
+                while chosen.len() < k {
+                    let i = rng.below(samples.len() as u64) as usize;
+                    if !chosen.iter().any(|&j| samples[j] == samples[i]) {
+                        chosen.push(i);
+                    }
+                }
+                let set: Vec<[i64; 3]> = chosen.iter().map(|&i| samples[i]).collect();
+                let near = |a: [i64; 3], b: [i64; 3]| (0..3).all(|c| (a[c] - b[c]).abs() <= 1);
+                let shares = set
+                    .iter()
+                    .enumerate()
+                    .any(|(i, &a)| set[i + 1..].iter().any(|&b| near(a, b)));
+                apart += usize::from(!shares && k > 1);
+                sharing += usize::from(shares);
+                assert_eq!(
+                    count.change(&samples, &flips, &chosen),
+                    change(&mut vol, &set),
+                    "round {round}: {set:?}"
+                );
+            }
+        }
+        assert!(
+            apart > 500 && sharing > 500,
+            "{apart} apart, {sharing} sharing a cube"
+        );
     }
 
     /// A look after the first tries again every cell within [`NEAR_REACH`] of a flip of the
