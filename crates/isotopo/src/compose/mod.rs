@@ -502,30 +502,32 @@ impl Mender {
     /// Two flips, each simple in turn, one of them a corner of `cell` and the other within one
     /// sample of it, that lower the critical cells around them the most.
     fn best_pair(&self, vol: &mut MaskVolume, cell: Cell) -> Option<([i64; 3], [i64; 3])> {
-        let corners = corners(vol, cell);
         let near = near(vol, cell);
-        type Pair = ([i64; 3], [i64; 3]);
-        let mut best: Option<(Pair, i64)> = None;
-        let orders = corners
+        let (count, flips) = LocalCount::of_near(vol, cell, &near);
+        let corners = corners(vol, cell);
+        let corners = corners
             .iter()
-            .flat_map(|&c| near.iter().flat_map(move |&n| [(c, n), (n, c)]));
-        for (p, q) in orders {
-            if p == q || !self.simple(vol, p) {
+            .filter_map(|c| near.iter().position(|n| n == c));
+        let orders = corners.flat_map(|c| (0..near.len()).flat_map(move |n| [(c, n), (n, c)]));
+        // The count first (a table look-up); each sample's test alone once, when needed.
+        let mut alone: Vec<Option<bool>> = vec![None; near.len()];
+        let mut best: Option<((usize, usize), i64)> = None;
+        for (i, j) in orders {
+            if i == j {
                 continue;
             }
-            let before = vol.get(p[0], p[1], p[2]);
-            set(vol, p, !before);
-            let q_simple = self.simple(vol, q);
-            set(vol, p, before);
-            if !q_simple {
+            let d = count.change(&near, &flips, &[i, j]);
+            if d >= 0 || best.is_some_and(|(_, b)| d >= b) {
                 continue;
             }
-            let d = change(vol, &[p, q]);
-            if d < 0 && best.is_none_or(|(_, b)| d < b) {
-                best = Some(((p, q), d));
+            let (p, q) = (near[i], near[j]);
+            if *alone[i].get_or_insert_with(|| self.simple(vol, p))
+                && self.simple_after(vol, &[p], q)
+            {
+                best = Some(((i, j), d));
             }
         }
-        best.map(|(pq, _)| pq)
+        best.map(|((i, j), _)| (near[i], near[j]))
     }
 }
 
@@ -917,54 +919,48 @@ impl Mender {
     ///   . # #      . # #      . # #
     /// ```
     fn best_triple(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
-        let corners = corners(vol, cell);
         let near = near(vol, cell);
-        for &p in &near {
-            if !self.simple(vol, p) {
-                continue;
-            }
-            toggle(vol, p);
-            let found = self.triple_after(vol, p, &near, &corners);
-            toggle(vol, p);
-            if found.is_some() {
-                return found;
+        let (count, flips) = LocalCount::of_near(vol, cell, &near);
+        let corners: Vec<usize> = corners(vol, cell)
+            .iter()
+            .filter_map(|c| near.iter().position(|n| n == c))
+            .collect();
+        let next_to = |a: [i64; 3], b: [i64; 3]| a != b && (0..3).all(|c| (a[c] - b[c]).abs() <= 1);
+        // The first triple in order that lowers the count and whose flips are simple in turn:
+        // the count first (a table look-up), each flip's test once, when a triple needs it.
+        for (i, &p) in near.iter().enumerate() {
+            let mut p_simple = None;
+            for (j, &q) in near.iter().enumerate().filter(|&(_, &q)| next_to(p, q)) {
+                let mut q_simple = None;
+                for &k in corners.iter().filter(|&&k| k != i && k != j) {
+                    if count.change(&near, &flips, &[i, j, k]) >= 0 {
+                        continue;
+                    }
+                    if !*p_simple.get_or_insert_with(|| self.simple(vol, p)) {
+                        break;
+                    }
+                    if !*q_simple.get_or_insert_with(|| self.simple_after(vol, &[p], q)) {
+                        break;
+                    }
+                    let r = near[k];
+                    if self.simple_after(vol, &[p, q], r) {
+                        return Some(vec![p, q, r]);
+                    }
+                }
+                if p_simple == Some(false) {
+                    break;
+                }
             }
         }
         None
     }
 
-    /// With `p` flipped: the rest of a triple (see [`Mender::best_triple`]).
-    fn triple_after(
-        &self,
-        vol: &mut MaskVolume,
-        p: [i64; 3],
-        near: &[[i64; 3]],
-        corners: &[[i64; 3]],
-    ) -> Option<Vec<[i64; 3]>> {
-        let next_to = |a: [i64; 3], b: [i64; 3]| a != b && (0..3).all(|c| (a[c] - b[c]).abs() <= 1);
-        for &q in near.iter().filter(|&&q| next_to(p, q)) {
-            if !self.simple(vol, q) {
-                continue;
-            }
-            toggle(vol, q);
-            for &r in corners.iter().filter(|&&r| r != p && r != q) {
-                if !self.simple(vol, r) {
-                    continue;
-                }
-                toggle(vol, q);
-                toggle(vol, p);
-                // From the state before the three: p, q, r in turn.
-                let d = change(vol, &[p, q, r]);
-                toggle(vol, p);
-                toggle(vol, q);
-                if d < 0 {
-                    toggle(vol, q);
-                    return Some(vec![p, q, r]);
-                }
-            }
-            toggle(vol, q);
-        }
-        None
+    /// Whether `r` may flip once `before` are flipped, in turn.
+    fn simple_after(&self, vol: &mut MaskVolume, before: &[[i64; 3]], r: [i64; 3]) -> bool {
+        before.iter().for_each(|&p| toggle(vol, p));
+        let simple = self.simple(vol, r);
+        before.iter().rev().for_each(|&p| toggle(vol, p));
+        simple
     }
 }
 
@@ -1189,6 +1185,14 @@ impl LocalCount {
             })
             .collect();
         LocalCount { cubes, bits }
+    }
+
+    /// The count round a cell for flips among `near` (its samples within one sample), and
+    /// their parts.
+    fn of_near(vol: &MaskVolume, (_, c): Cell, near: &[[i64; 3]]) -> (LocalCount, Vec<Flip>) {
+        let count = LocalCount::new(vol, c.map(|v| v - 1), c.map(|v| v + 2));
+        let flips = near.iter().map(|&p| count.flip(p)).collect();
+        (count, flips)
     }
 
     /// Sample `p`'s part in the count (it must lie in the region the count was made for).
