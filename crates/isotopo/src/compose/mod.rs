@@ -503,7 +503,7 @@ impl Mender {
     /// sample of it, that lower the critical cells around them the most.
     fn best_pair(&self, vol: &mut MaskVolume, cell: Cell) -> Option<([i64; 3], [i64; 3])> {
         let near = near(vol, cell);
-        let (count, flips) = LocalCount::of_near(vol, cell, &near);
+        let (mut count, flips) = LocalCount::of_near(vol, cell, &near);
         let corners = corners(vol, cell);
         let corners = corners
             .iter()
@@ -920,7 +920,7 @@ impl Mender {
     /// ```
     fn best_triple(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
         let near = near(vol, cell);
-        let (count, flips) = LocalCount::of_near(vol, cell, &near);
+        let (mut count, flips) = LocalCount::of_near(vol, cell, &near);
         let corners: Vec<usize> = corners(vol, cell)
             .iter()
             .filter_map(|c| near.iter().position(|n| n == c))
@@ -1168,13 +1168,15 @@ struct LocalCount {
     cubes: BoxCells,
     /// Each one's corners, as `cube_bits` orders them.
     bits: Vec<u8>,
+    /// Room for the corners a set flips in each cube (all zero between sets).
+    flipped: Vec<u8>,
 }
 
 impl LocalCount {
     /// For flips within `lo ..= hi`.
     fn new(vol: &MaskVolume, lo: [i64; 3], hi: [i64; 3]) -> Self {
         let cubes = BoxCells::new(lo.map(|c| c - 1), hi);
-        let bits = (0..cubes.len())
+        let bits: Vec<u8> = (0..cubes.len())
             .map(|i| {
                 let c = cubes.sample(i);
                 (0..8).fold(0u8, |bits, k| {
@@ -1184,7 +1186,12 @@ impl LocalCount {
                 })
             })
             .collect();
-        LocalCount { cubes, bits }
+        let flipped = vec![0; bits.len()];
+        LocalCount {
+            cubes,
+            bits,
+            flipped,
+        }
     }
 
     /// The count round a cell for flips among `near` (its samples within one sample), and
@@ -1216,7 +1223,7 @@ impl LocalCount {
     /// are `flips`) are flipped (see [`change`]): only the cubes with a flip as a corner, and
     /// the cells they own (the cube and its three faces at its lowest corner), can change. Flips
     /// more than a sample apart on some axis share no cube: their changes add up.
-    fn change(&self, samples: &[[i64; 3]], flips: &[Flip], set: &[usize]) -> i64 {
+    fn change(&mut self, samples: &[[i64; 3]], flips: &[Flip], set: &[usize]) -> i64 {
         // A rewrite's three flips at most, thousands of sets a cell: no allocation.
         assert!(set.len() <= 3, "a rewrite flips at most three samples");
         let apart = |a: usize, b: usize| (0..3).any(|c| (samples[a][c] - samples[b][c]).abs() > 1);
@@ -1224,22 +1231,24 @@ impl LocalCount {
         if all_apart {
             return set.iter().map(|&i| flips[i].alone).sum();
         }
-        let (mut flipped, mut n) = ([(0u32, 0u8); 24], 0);
+        // The corners flipped in each cube, gathered in `flipped` (distinct samples are
+        // distinct corners of a cube they share: no bit is flipped twice).
+        let (mut touched, mut n) = ([0u32; 24], 0);
         for &i in set {
             for (k, &cube) in flips[i].cubes.iter().enumerate() {
-                match flipped[..n].iter_mut().find(|(j, _)| *j == cube) {
-                    Some((_, mask)) => *mask ^= 1 << k,
-                    None => {
-                        flipped[n] = (cube, 1 << k);
-                        n += 1;
-                    }
+                let mask = &mut self.flipped[cube as usize];
+                if *mask == 0 {
+                    touched[n] = cube;
+                    n += 1;
                 }
+                *mask |= 1 << k;
             }
         }
-        flipped[..n]
+        touched[..n]
             .iter()
-            .map(|&(i, mask)| {
-                let bits = self.bits[i as usize];
+            .map(|&cube| {
+                let (bits, mask) = (self.bits[cube as usize], self.flipped[cube as usize]);
+                self.flipped[cube as usize] = 0;
                 owned_critical(bits ^ mask) - owned_critical(bits)
             })
             .sum()
@@ -1763,7 +1772,7 @@ mod tests {
             }
             let c: [i64; 3] = std::array::from_fn(|_| rng.below(n as u64 - 3) as i64);
             let (lo, hi) = (c.map(|v| v - 1), c.map(|v| v + 4));
-            let count = LocalCount::new(&vol, lo, hi);
+            let mut count = LocalCount::new(&vol, lo, hi);
             let samples: Vec<[i64; 3]> = (0..40)
                 .map(|_| std::array::from_fn(|k| c[k] + rng.below(4) as i64))
                 .filter(|p: &[i64; 3]| p.iter().all(|&v| v < n as i64))
