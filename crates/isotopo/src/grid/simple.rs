@@ -217,9 +217,13 @@ impl SetTest {
             .filter_map(|r| cells.index(region.sample(r)))
             .map(|c| c as u32)
             .collect();
+        let shell: Vec<u32> = (0..cells.len())
+            .filter(|&c| cells.on_shell(c))
+            .map(|c| c as u32)
+            .collect();
         let side = |s: usize| {
             let six = (s == 0) == (conn == Connectivity::Six);
-            Exterior::new(&cells, &region, &region_cells, &inside, s == 0, six)
+            Exterior::new(&cells, &region, &region_cells, &shell, &inside, s == 0, six)
         };
         let sides = [side(0), side(1)];
         let mut test = SetTest {
@@ -286,8 +290,9 @@ impl SetTest {
         self.root.clear();
         self.root.extend(0..nodes as u32);
         let root = &mut self.root;
-        let (region, inside, region_cells) = (&self.region, &self.inside, &self.region_cells);
+        let (inside, region_cells) = (&self.inside, &self.region_cells);
         let of_side = |r: usize| inside[region_cells[r] as usize] == side;
+        // Nodes: the pieces beyond the region, then the region's samples.
         let mut pieces = ext.pieces;
         for r in 0..region_cells.len() {
             if !of_side(r) {
@@ -295,15 +300,11 @@ impl SetTest {
             }
             pieces += 1;
             let node = ext.pieces + r;
-            let q = region.sample(r);
-            for d in earlier_offsets(ext.six) {
-                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
-                if let Some(m) = region.index(n).filter(|&m| of_side(m)) {
-                    pieces -= usize::from(join(root, node, ext.pieces + m));
+            for &n in ext.links(r) {
+                let n = n as usize;
+                if n < ext.pieces || of_side(n - ext.pieces) {
+                    pieces -= usize::from(join(root, node, n));
                 }
-            }
-            for &e in ext.touching(r) {
-                pieces -= usize::from(join(root, node, e as usize));
             }
         }
         let mut number = vec![u32::MAX; nodes];
@@ -335,15 +336,15 @@ impl SetTest {
 ///   +-------------+
 /// ```
 struct Exterior {
-    /// Whether the side is 6-connected (else 26).
-    six: bool,
     /// How many pieces.
     pieces: usize,
     /// The pieces the shell's samples of the side lie in, each once, in order of first meeting.
     on_shell: Vec<u32>,
-    /// For region sample `r`, the pieces it touches are `touch[start[r]..start[r + 1]]`.
+    /// For region sample `r`, the nodes it is joined to are `links[start[r]..start[r + 1]]`:
+    /// pieces (numbers below `pieces`) and region samples met before it (`pieces` + their
+    /// number in the region).
     start: Vec<u32>,
-    touch: Vec<u32>,
+    links: Vec<u32>,
     /// The shape before any flip (see [`SetTest::shape`]).
     before: Vec<u32>,
     enclosed: usize,
@@ -354,6 +355,7 @@ impl Exterior {
         cells: &BoxCells,
         region: &BoxCells,
         region_cells: &[u32],
+        shell: &[u32],
         inside: &[bool],
         side: bool,
         six: bool,
@@ -365,43 +367,51 @@ impl Exterior {
         let (pieces, piece) = label(cells, six, |c| !in_region[c] && inside[c] == side);
         let mut on_shell = Vec::new();
         let mut met = vec![false; pieces];
-        for c in (0..cells.len()).filter(|&c| cells.on_shell(c)) {
-            let p = piece[c];
+        for &c in shell {
+            let p = piece[c as usize];
             if p != u32::MAX && !met[p as usize] {
                 met[p as usize] = true;
                 on_shell.push(p);
             }
         }
+        // What each region sample is joined to when it is of the side: the pieces it touches,
+        // always, and the region samples met before it in a scan, if they are of the side too.
+        // (A region sample's neighbours all lie in the box: the margin is wider than one.)
+        let size = cells.size.map(|n| n as i64);
+        let step = |d: [i64; 3]| (d[2] * size[1] + d[1]) * size[0] + d[0];
         let offsets = neighbourhood().offsets.into_iter();
-        let adjacent: Vec<[i64; 3]> = offsets.filter(|d| !six || l1(*d) == 1).collect();
-        let (mut start, mut touch) = (vec![0], Vec::new());
-        for r in 0..region.len() {
-            let q = region.sample(r);
-            let first = touch.len();
-            for d in &adjacent {
-                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
-                if let Some(p) = cells.index(n).map(|c| piece[c]) {
-                    if p != u32::MAX && !touch[first..].contains(&p) {
-                        touch.push(p);
-                    }
+        let adjacent: Vec<i64> = offsets.filter(|d| !six || l1(*d) == 1).map(step).collect();
+        let (mut start, mut links) = (vec![0], Vec::new());
+        for (r, &c) in region_cells.iter().enumerate() {
+            let first = links.len();
+            for &d in &adjacent {
+                let p = piece[(c as i64 + d) as usize];
+                if p != u32::MAX && !links[first..].contains(&p) {
+                    links.push(p);
                 }
             }
-            start.push(touch.len() as u32);
+            let q = region.sample(r);
+            for d in earlier_offsets(six) {
+                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+                if let Some(m) = region.index(n) {
+                    links.push((pieces + m) as u32);
+                }
+            }
+            start.push(links.len() as u32);
         }
         Exterior {
-            six,
             pieces,
             on_shell,
             start,
-            touch,
+            links,
             before: Vec::new(),
             enclosed: 0,
         }
     }
 
-    /// The pieces region sample `r` touches.
-    fn touching(&self, r: usize) -> &[u32] {
-        &self.touch[self.start[r] as usize..self.start[r + 1] as usize]
+    /// The nodes region sample `r` is joined to (see [`SetTest::shape`]).
+    fn links(&self, r: usize) -> &[u32] {
+        &self.links[self.start[r] as usize..self.start[r + 1] as usize]
     }
 }
 
