@@ -1757,19 +1757,7 @@ mod tests {
         let n = 12;
         let (mut apart, mut sharing) = (0, 0);
         for round in 0..24 {
-            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
-            let density = [30, 50, 70][round % 3];
-            for z in 0..n {
-                for y in 0..n {
-                    for x in 0..n {
-                        set(
-                            &mut vol,
-                            [x, y, z].map(|c| c as i64),
-                            rng.below(100) < density,
-                        );
-                    }
-                }
-            }
+            let mut vol = crate::grid::random_mask(&mut rng, n, [30, 50, 70][round % 3]);
             let c: [i64; 3] = std::array::from_fn(|_| rng.below(n as u64 - 3) as i64);
             let (lo, hi) = (c.map(|v| v - 1), c.map(|v| v + 4));
             let mut count = LocalCount::new(&vol, lo, hi);

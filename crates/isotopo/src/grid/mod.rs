@@ -10,6 +10,21 @@ pub(crate) mod simple;
 pub use fractions::EdgeFractions;
 pub use planes::{window_for, Axis, Frame, MaskVolume, DEFAULT_WINDOW_BYTES, MIN_WINDOW};
 
+/// An `n`³ mask for tests, each sample inside with chance `percent` / 100 (one number of
+/// `rng` a sample, x fastest).
+#[cfg(test)]
+pub(crate) fn random_mask(rng: &mut crate::test_rng::Rng, n: usize, percent: u64) -> MaskVolume {
+    let mut vol = MaskVolume::new([n; 3], Frame::identity());
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                vol.set(x, y, z, rng.below(100) < percent);
+            }
+        }
+    }
+    vol
+}
+
 /// The samples of a small box `lo ..= hi`, numbered x fastest, for searches that keep a flag or
 /// a mark per sample of the box (an array, not a hash set of positions).
 #[derive(Clone, Copy, Debug)]

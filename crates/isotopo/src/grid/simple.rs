@@ -665,15 +665,7 @@ mod tests {
         let (mut accepted, mut refused) = (0, 0);
         for round in 0..16 {
             let n = 14;
-            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
-            let density = [30, 45, 55, 70][round % 4];
-            for z in 0..n {
-                for y in 0..n {
-                    for x in 0..n {
-                        vol.set(x, y, z, rng.below(100) < density);
-                    }
-                }
-            }
+            let vol = crate::grid::random_mask(&mut rng, n, [30, 45, 55, 70][round % 4]);
             let conn = BOTH[round % 2];
             let six_side = conn == Connectivity::Six;
             // A region like a rewrite's (six samples wide), some beyond the volume's faces.
@@ -717,23 +709,14 @@ mod tests {
     #[test]
     fn the_set_test_agrees_with_simple_samples_and_with_the_genus_pass() {
         let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
-        let mut random = |n: u64| rng.below(n);
         let (mut accepted, mut refused) = (0, 0);
         for round in 0..8 {
             let n = 12;
-            let mut vol = MaskVolume::new([n, n, n], Frame::identity());
-            let density = [35, 50, 65][round % 3];
-            for z in 0..n {
-                for y in 0..n {
-                    for x in 0..n {
-                        vol.set(x, y, z, random(100) < density);
-                    }
-                }
-            }
+            let mut vol = crate::grid::random_mask(&mut rng, n, [35, 50, 65][round % 3]);
             let conn = BOTH[round % 2];
             let betti_before = betti(&vol, conn);
             for _ in 0..300 {
-                let p = [0, 1, 2].map(|_| random(n as u64) as i64);
+                let p = [0, 1, 2].map(|_| rng.below(n as u64) as i64);
                 // A simple flip is always accepted; a flip that is not may be too, when it
                 // makes one handle and undoes another (numbers (2, 2)), checked below.
                 let simple = topological_numbers(&vol, p, conn) == (1, 1);
@@ -744,11 +727,11 @@ mod tests {
                     assert_eq!(betti(&vol, conn), betti_before, "{p:?}");
                     toggle(&mut vol, p);
                 }
-                let k = 2 + random(2) as usize;
+                let k = 2 + rng.below(2) as usize;
                 let mut set = vec![p];
                 while set.len() < k {
                     let q: [i64; 3] = std::array::from_fn(|c| {
-                        (p[c] + random(3) as i64 - 1).clamp(0, n as i64 - 1)
+                        (p[c] + rng.below(3) as i64 - 1).clamp(0, n as i64 - 1)
                     });
                     if !set.contains(&q) {
                         set.push(q);

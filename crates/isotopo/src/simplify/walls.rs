@@ -772,17 +772,18 @@ mod tests {
         // A square loop of x and y edges in the plane z = 10, and a partner of x, y and z edges
         // through its vertex (10.5, 10, 10), climbing and turning so every step is half a sample
         // off on some axis.
-        let lp: Vec<Vertex> = [
+        let edges = |list: &[([i64; 3], u8)]| -> Vec<Vertex> {
+            list.iter().map(|&(p, axis)| Vertex { p, axis }).collect()
+        };
+        let lp = edges(&[
             ([10, 10, 10], 0),
             ([11, 10, 10], 1),
             ([11, 11, 10], 1),
             ([10, 12, 10], 0),
             ([9, 11, 10], 1),
             ([9, 10, 10], 1),
-        ]
-        .map(|(p, axis)| Vertex { p, axis })
-        .to_vec();
-        let partner: Vec<Vertex> = [
+        ]);
+        let partner = edges(&[
             ([10, 10, 10], 0),
             ([10, 10, 10], 2),
             ([10, 10, 11], 1),
@@ -791,9 +792,7 @@ mod tests {
             ([11, 11, 12], 2),
             ([11, 11, 13], 1),
             ([11, 12, 13], 0),
-        ]
-        .map(|(p, axis)| Vertex { p, axis })
-        .to_vec();
+        ]);
         let points: Vec<[f64; 3]> = lp.iter().map(|v| v.midpoint()).collect();
         let centre = peel_centre(&points, &partner);
         assert_eq!(centre, [10.5, 10.0, 10.0]);
