@@ -450,10 +450,9 @@ pub fn close(
         certified,
     } = attempt;
     let target = op.target();
-    let [nu, nv, nw] = vol.dims.map(|x| x as i64);
     let changed: Vec<[i64; 3]> = wall
         .into_iter()
-        .filter(|q| (0..3).all(|k| q[k] >= 0) && q[0] < nu && q[1] < nv && q[2] < nw)
+        .filter(|&q| vol.contains(q))
         .filter(|q| vol.get(q[0], q[1], q[2]) != target)
         .collect();
     if changed.is_empty() {

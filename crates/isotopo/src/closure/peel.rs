@@ -51,12 +51,11 @@ pub fn peel_walls(
     target: &PeelTarget,
     most: usize,
 ) -> Vec<Vec<[i64; 3]>> {
-    let dims = vol.dims.map(|n| n as i64);
     let side = !op.target();
     let mut cand: Vec<[i64; 3]> = region
         .iter()
         .copied()
-        .filter(|q| (0..3).all(|c| q[c] >= 0 && q[c] < dims[c]))
+        .filter(|&q| vol.contains(q))
         .filter(|q| vol.get(q[0], q[1], q[2]) == side)
         .collect();
     // Far from the centre first: the side is peeled from the loop inwards.

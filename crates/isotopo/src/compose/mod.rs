@@ -669,7 +669,7 @@ impl Mender {
         });
         apart
             && to.iter().all(|&t| {
-                within(vol, t)
+                vol.contains(t)
                     && vol.get(t[0], t[1], t[2]) != side
                     && STEPS.iter().all(|e| {
                         let q = [t[0] + e[0], t[1] + e[1], t[2] + e[2]];
@@ -728,7 +728,7 @@ impl Mender {
                     continue;
                 }
                 left = true;
-                if within(vol, q) && self.simple(vol, q) {
+                if vol.contains(q) && self.simple(vol, q) {
                     let d = (change(vol, &[q]), q);
                     best = Some(best.map_or(d, |b| b.min(d)));
                 }
@@ -803,7 +803,7 @@ impl Mender {
             let shrink = at.iter().filter(|q| !next.contains(q));
             for &q in grow.chain(shrink) {
                 let growing = !at.contains(&q);
-                if !within(vol, q)
+                if !vol.contains(q)
                     || (vol.get(q[0], q[1], q[2]) == side) == growing
                     || !self.simple(vol, q)
                 {
@@ -870,7 +870,7 @@ fn small_piece(vol: &MaskVolume, p: [i64; 3], side: bool, max: usize) -> Option<
         for e in STEPS {
             let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
             if state(vol, r) == side && !piece.contains(&r) {
-                if !within(vol, r) || piece.len() == max {
+                if !vol.contains(r) || piece.len() == max {
                     return None;
                 }
                 piece.push(r);
@@ -1362,7 +1362,7 @@ fn side_path(
         for (k, e) in STEPS.iter().enumerate() {
             let r = [q[0] + e[0], q[1] + e[1], q[2] + e[2]];
             let Some(c) = cells.index(r) else { continue };
-            if from[c] == u8::MAX && within(vol, r) && vol.get(r[0], r[1], r[2]) == side {
+            if from[c] == u8::MAX && vol.contains(r) && vol.get(r[0], r[1], r[2]) == side {
                 from[c] = k as u8;
                 queue.push_back(r);
             }
@@ -1418,7 +1418,7 @@ fn joined_for_sure(vol: &MaskVolume, a: [i64; 3], d: [i64; 3], side: bool) -> bo
 /// one closed far away is held no matter, which only leaves a face or two round `b` unmended.
 pub(crate) fn may_hold_a_handle(vol: &MaskVolume, conn: Connectivity, b: [i64; 3]) -> bool {
     let side = conn == Connectivity::Six;
-    within(vol, b) && state(vol, b) == side && side_numbers(vol, b, conn) == (2, 1)
+    vol.contains(b) && state(vol, b) == side && side_numbers(vol, b, conn) == (2, 1)
 }
 
 /// How far [`one_component`] may search.
@@ -1550,10 +1550,6 @@ fn set(vol: &mut MaskVolume, p: [i64; 3], inside: bool) {
     vol.set(p[0] as usize, p[1] as usize, p[2] as usize, inside)
 }
 
-fn within(vol: &MaskVolume, p: [i64; 3]) -> bool {
-    (0..3).all(|c| p[c] >= 0 && p[c] < vol.dims[c] as i64)
-}
-
 /// The change in critical cells if the samples `flips` are flipped in turn: among the cells
 /// that have one of them as a corner, the only ones a flip can change (the volume is left as it
 /// was).
@@ -1586,7 +1582,7 @@ fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
 
 /// Which side sample `q` is on: inside, or outside (the padding beyond the volume too).
 fn state(vol: &MaskVolume, q: [i64; 3]) -> bool {
-    within(vol, q) && vol.get(q[0], q[1], q[2])
+    vol.contains(q) && vol.get(q[0], q[1], q[2])
 }
 
 /// The in-volume corners of a cell.
@@ -1601,7 +1597,7 @@ fn corners(vol: &MaskVolume, (kind, c): Cell) -> Vec<[i64; 3]> {
         .map(corner_offset)
         .filter(|d| fixed.is_none_or(|a| d[a] == 0))
         .map(|d| [c[0] + d[0], c[1] + d[1], c[2] + d[2]])
-        .filter(|&p| within(vol, p))
+        .filter(|&p| vol.contains(p))
         .collect()
 }
 
@@ -1617,7 +1613,7 @@ fn around(vol: &MaskVolume, (_, c): Cell, r: i64) -> Vec<[i64; 3]> {
         for y in -r..=1 + r {
             for x in -r..=1 + r {
                 let p = [c[0] + x, c[1] + y, c[2] + z];
-                if within(vol, p) {
+                if vol.contains(p) {
                     out.push(p);
                 }
             }

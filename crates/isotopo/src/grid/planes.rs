@@ -416,6 +416,12 @@ impl MaskVolume {
         }
     }
 
+    /// Whether the sample `q` (local u, v, w) is in the volume, not in the padding round it.
+    #[inline]
+    pub fn contains(&self, q: [i64; 3]) -> bool {
+        (0..3).all(|k| q[k] >= 0 && q[k] < self.dims[k] as i64)
+    }
+
     #[inline]
     /// Whether the sample at local (u, v, w) is inside; outside the volume (the padding), false.
     pub fn get(&self, u: i64, v: i64, w: i64) -> bool {
@@ -518,6 +524,21 @@ mod tests {
             b.include(frame.to_original_i(p));
             b.include(frame.to_original_i(q));
             assert_eq!(frame.to_local_box(&b), ([1, 2, -1], [4, 5, 9]), "{axis:?}");
+        }
+    }
+
+    /// The volume holds its samples from 0 to its extent less one on each axis; a sample one
+    /// beyond any face is padding.
+    #[test]
+    fn a_volume_contains_its_samples_and_not_the_padding() {
+        let vol = MaskVolume::new([3, 4, 5], Frame::identity());
+        for k in 0..3 {
+            let n = vol.dims[k] as i64;
+            for (at, held) in [(-1, false), (0, true), (n - 1, true), (n, false)] {
+                let mut q = [1, 1, 1];
+                q[k] = at;
+                assert_eq!(vol.contains(q), held, "{q:?}");
+            }
         }
     }
 }

@@ -206,11 +206,10 @@ impl SetTest {
     pub(crate) fn new(vol: &MaskVolume, lo: [i64; 3], hi: [i64; 3], conn: Connectivity) -> Self {
         let cells = BoxCells::new(lo.map(|c| c - SET_MARGIN), hi.map(|c| c + SET_MARGIN));
         let region = BoxCells::new(lo, hi);
-        let dims = vol.dims.map(|n| n as i64);
         let inside: Vec<bool> = (0..cells.len())
             .map(|c| {
                 let q = cells.sample(c);
-                (0..3).all(|k| q[k] >= 0 && q[k] < dims[k]) && vol.get(q[0], q[1], q[2])
+                vol.contains(q) && vol.get(q[0], q[1], q[2])
             })
             .collect();
         let region_cells: Vec<u32> = (0..region.len())

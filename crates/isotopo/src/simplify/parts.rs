@@ -241,10 +241,6 @@ fn add(q: [i64; 3], d: [i64; 3]) -> [i64; 3] {
     [q[0] + d[0], q[1] + d[1], q[2] + d[2]]
 }
 
-fn in_volume(vol: &MaskVolume, q: [i64; 3]) -> bool {
-    (0..3).all(|a| q[a] >= 0 && q[a] < vol.dims[a] as i64)
-}
-
 /// A connected set of samples of one side.
 #[derive(Clone, Copy)]
 struct Part {
@@ -379,7 +375,7 @@ fn label(vol: &MaskVolume, side: Side) -> Result<(Vec<Part>, Labels)> {
                     if part.seed[0] == i64::MAX {
                         part.seed = [x, y, z];
                     }
-                    if in_volume(vol, [x, y, z]) {
+                    if vol.contains([x, y, z]) {
                         part.size += 1;
                     } else {
                         part.exterior = true;
@@ -610,7 +606,7 @@ fn shortest_join(
         for &q in &layer {
             for &d in side.offsets() {
                 let n = add(q, d);
-                if !in_volume(vol, n)
+                if !vol.contains(n)
                     || vol.get(n[0], n[1], n[2]) == side.inside
                     || parent.contains_key(&n)
                     || refused.contains_key(&n)
