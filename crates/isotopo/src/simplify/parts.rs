@@ -970,6 +970,36 @@ mod tests {
         assert_eq!(betti(&vol, conn), [1, 0, 0]);
     }
 
+    /// The space on either side of a solid wall that crosses the volume is one part through the
+    /// padding beyond the volume's faces, and the check finds it so next to the low faces too:
+    /// its box round the path reaches `margin` samples below the path, into the padding.
+    ///
+    /// ```text
+    ///   y=3  . . . . .    outside ('.'), joined only round the wall's end at x = -1
+    ///   y=2  # # # # #    the wall (a whole plane y = 2 of the 20 x 5 x 20 volume)
+    ///   y=1  . . . . .    (x = 0 is the volume's low face; the high faces are too far)
+    /// ```
+    #[test]
+    fn the_space_round_a_wall_is_joined_through_the_padding_by_the_low_faces() {
+        let mut vol = MaskVolume::new([20, 5, 20], Frame::identity());
+        for (x, z) in (0..20).flat_map(|x| (0..20).map(move |z| (x, z))) {
+            vol.set(x, 2, z, true);
+        }
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let space = Side::space(conn);
+            let path = [[0, 2, 1]];
+            assert!(connected_near(&vol, space, &[[0, 1, 1], [0, 3, 1]], &path));
+            // Away from the faces no margin reaches round the wall.
+            let path = [[10, 2, 10]];
+            assert!(!connected_near(
+                &vol,
+                space,
+                &[[10, 1, 10], [10, 3, 10]],
+                &path
+            ));
+        }
+    }
+
     /// The bookkeeping of a solid speck's removal: it is the one part that goes.
     fn speck_owner(vol: &MaskVolume, speck: [i64; 3]) -> Owner {
         let (parts, labels) = label(vol, Side::solid(Connectivity::Six)).unwrap();
