@@ -641,18 +641,16 @@ pub(crate) fn chained_reeb_loop(
     let mut cur = start;
     for k in (1..n).step_by(2) {
         let r = cycle[after(k)];
-        let ends_on = match k + 1 < n {
-            true => {
-                let c = cycle[after(k + 1)];
-                (c.level as u64, l.contour_starts[after(k + 1)].key())
-            }
-            false => (u64::MAX, cut_key(&l.cut)),
+        let end = StretchEnd::of(l, k);
+        let ends_on = match end {
+            StretchEnd::Contour { level, start } => (level as u64, start.key()),
+            StretchEnd::Cut => (u64::MAX, cut_key(&l.cut)),
         };
         let key = (r.level as i64, r.local, cur.key(), ends_on);
         let path = match cache.segment(&key) {
             Some(path) => path,
             None => {
-                let path = ribbon_stretch(top, cache, l, k, cur)?;
+                let path = ribbon_stretch(top, cache, l, k, cur, end)?;
                 cache.keep_segment(key, &path);
                 path
             }
@@ -672,31 +670,55 @@ pub(crate) fn chained_reeb_loop(
     odd_simple_loop(top, &l.cut, walk)
 }
 
+/// Where the stretch of [`chained_reeb_loop`]'s walk through the `k`-th node after the cut (a
+/// ribbon) ends: the contour after it, or, from the last ribbon, the cut. A kept stretch is
+/// found again by it, so the key and the search read it from one place.
+#[derive(Clone, Copy)]
+enum StretchEnd {
+    /// The contour at `level` that the walk along the plane from `start` goes round.
+    Contour {
+        level: i32,
+        start: Vertex,
+    },
+    Cut,
+}
+
+impl StretchEnd {
+    fn of(l: &LocatedHandle, k: usize) -> StretchEnd {
+        let n = l.cycle.len();
+        if k + 1 < n {
+            let at = (l.cut_at + k + 1) % n;
+            StretchEnd::Contour {
+                level: l.cycle[at].level,
+                start: l.contour_starts[at],
+            }
+        } else {
+            StretchEnd::Cut
+        }
+    }
+}
+
 /// The stretch of [`chained_reeb_loop`]'s walk through the `k`-th node after the cut (a
-/// ribbon): the shortest path within the ribbon from `cur` to the contour after it (or, from
-/// the last ribbon, to the cut).
+/// ribbon): the shortest path within the ribbon from `cur` to its `end`.
 fn ribbon_stretch(
     top: &mut Graph,
     cache: &mut SliceCache,
     l: &LocatedHandle,
     k: usize,
     cur: Vertex,
+    end: StretchEnd,
 ) -> Option<Vec<Vertex>> {
-    let (cycle, n) = (&l.cycle, l.cycle.len());
-    let after = |k: usize| (l.cut_at + k) % n;
-    let r = cycle[after(k)];
+    let r = l.cycle[(l.cut_at + k) % l.cycle.len()];
     // The contour the path through this ribbon ends on, as vertex numbers.
-    let targets: std::sync::Arc<FastMap<u64, ()>> = if k + 1 < n {
-        let c = cycle[after(k + 1)];
-        cache.contour(top, l.contour_starts[after(k + 1)], c.level as i64)?
-    } else {
-        std::sync::Arc::new(
+    let targets: std::sync::Arc<FastMap<u64, ()>> = match end {
+        StretchEnd::Contour { level, start } => cache.contour(top, start, level as i64)?,
+        StretchEnd::Cut => std::sync::Arc::new(
             l.cut
                 .iter()
                 .filter(|&&v| v != l.cut[0])
                 .map(|v| (v.key(), ()))
                 .collect(),
-        )
+        ),
     };
     cache.trim();
     cache.ensure(top.vol, r.level as i64);
