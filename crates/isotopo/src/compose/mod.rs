@@ -1582,7 +1582,7 @@ fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
 
 /// Which side sample `q` is on: inside, or outside (the padding beyond the volume too).
 fn state(vol: &MaskVolume, q: [i64; 3]) -> bool {
-    vol.contains(q) && vol.get(q[0], q[1], q[2])
+    vol.get(q[0], q[1], q[2])
 }
 
 /// The in-volume corners of a cell.

@@ -52,6 +52,12 @@ impl BoxCells {
             .then(|| (r[2] as usize * self.size[1] + r[1] as usize) * self.size[0] + r[0] as usize)
     }
 
+    /// How far apart in the numbering two samples `d` apart are.
+    pub(crate) fn offset(&self, d: [i64; 3]) -> i64 {
+        let size = self.size.map(|n| n as i64);
+        (d[2] * size[1] + d[1]) * size[0] + d[0]
+    }
+
     /// Whether sample number `c` lies on the box's outer layer.
     pub(crate) fn on_shell(&self, c: usize) -> bool {
         let r = [

@@ -209,7 +209,7 @@ impl SetTest {
         let inside: Vec<bool> = (0..cells.len())
             .map(|c| {
                 let q = cells.sample(c);
-                vol.contains(q) && vol.get(q[0], q[1], q[2])
+                vol.get(q[0], q[1], q[2])
             })
             .collect();
         let region_cells: Vec<u32> = (0..region.len())
@@ -376,10 +376,11 @@ impl Exterior {
         // What each region sample is joined to when it is of the side: the pieces it touches,
         // always, and the region samples met before it in a scan, if they are of the side too.
         // (A region sample's neighbours all lie in the box: the margin is wider than one.)
-        let size = cells.size.map(|n| n as i64);
-        let step = |d: [i64; 3]| (d[2] * size[1] + d[1]) * size[0] + d[0];
         let offsets = neighbourhood().offsets.into_iter();
-        let adjacent: Vec<i64> = offsets.filter(|d| !six || l1(*d) == 1).map(step).collect();
+        let adjacent: Vec<i64> = offsets
+            .filter(|d| !six || l1(*d) == 1)
+            .map(|d| cells.offset(d))
+            .collect();
         let (mut start, mut links) = (vec![0], Vec::new());
         for (r, &c) in region_cells.iter().enumerate() {
             let first = links.len();
@@ -443,10 +444,7 @@ fn earlier_offsets(six: bool) -> &'static [[i64; 3]] {
 fn label(cells: &BoxCells, six: bool, member: impl Fn(usize) -> bool) -> (usize, Vec<u32>) {
     let size = cells.size.map(|n| n as i64);
     let earlier = earlier_offsets(six);
-    let step: Vec<usize> = earlier
-        .iter()
-        .map(|d| (-((d[2] * size[1] + d[1]) * size[0] + d[0])) as usize)
-        .collect();
+    let step: Vec<usize> = earlier.iter().map(|&d| -cells.offset(d) as usize).collect();
     let mut root = vec![u32::MAX; cells.len()];
     let mut c = 0;
     for z in 0..size[2] {
