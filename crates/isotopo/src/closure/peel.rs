@@ -25,7 +25,7 @@
 
 use super::Operation;
 use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers, FACES};
-use crate::grid::{BoxCells, MaskVolume};
+use crate::grid::{shift, BoxCells, MaskVolume};
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 
@@ -182,8 +182,8 @@ impl<'a> Ring<'a> {
         let stamps = [self.generation, self.generation + 1];
         let nb = neighbourhood();
         let member: [bool; 26] = std::array::from_fn(|k| {
-            let d = nb.offsets[k];
-            vol.get(q[0] + d[0], q[1] + d[1], q[2] + d[2]) == self.side
+            let r = shift(q, nb.offsets[k]);
+            vol.get(r[0], r[1], r[2]) == self.side
         });
         let mut piece = [usize::MAX; 26];
         if label_pieces(&member, self.six, |p, k| piece[k] = p) != 2 {
@@ -194,7 +194,7 @@ impl<'a> Ring<'a> {
             std::collections::VecDeque::new(),
         ];
         for k in 0..26 {
-            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(add(q, nb.offsets[k]))) {
+            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(shift(q, nb.offsets[k]))) {
                 self.stamp[c] = stamps[p];
                 self.from[c] = qc as u32;
                 fronts[p].push_back(c);
@@ -208,7 +208,7 @@ impl<'a> Ring<'a> {
             };
             let p = self.sample(c);
             for d in steps {
-                let r = add(p, *d);
+                let r = shift(p, *d);
                 let Some(rc) = self.cell(r).filter(|&rc| rc != qc) else {
                     continue;
                 };
@@ -248,11 +248,6 @@ impl<'a> Ring<'a> {
             .collect();
         crate::loops::linking_number(&ring, self.target.loop_points) != 0
     }
-}
-
-/// The six face neighbours.
-fn add(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
-    [a[0] + d[0], a[1] + d[1], a[2] + d[2]]
 }
 
 /// Flips the samples of `cand` (all of state `side`) that are simple, in their order, until none
@@ -310,7 +305,7 @@ pub(crate) fn flip_simple(
 /// Marks the samples of `index` next to `q` as to be looked at again.
 fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [bool]) {
     for d in neighbourhood().offsets {
-        if let Some(&j) = index.get(&[q[0] + d[0], q[1] + d[1], q[2] + d[2]]) {
+        if let Some(&j) = index.get(&shift(q, d)) {
             dirty[j] = true;
         }
     }

@@ -57,7 +57,7 @@
 
 use crate::error::Result;
 use crate::grid::simple::{same_piece, topological_numbers, SetTest};
-use crate::grid::{BoxCells, MaskVolume};
+use crate::grid::{shift, BoxCells, MaskVolume};
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
@@ -453,7 +453,7 @@ impl Mender {
         let mut near = Vec::new();
         for p in flips {
             for d in offsets {
-                let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+                let q = shift(*p, *d);
                 if self.held.contains_key(&q) {
                     near.push(q);
                 }
@@ -698,11 +698,7 @@ impl Mender {
         let offsets = &crate::grid::simple::neighbourhood().offsets;
         let mut around: Vec<[i64; 3]> = speck
             .iter()
-            .flat_map(|q| {
-                offsets
-                    .iter()
-                    .map(|d| [q[0] + d[0], q[1] + d[1], q[2] + d[2]])
-            })
+            .flat_map(|q| offsets.iter().map(|&d| shift(*q, d)))
             .filter(|q| !speck.contains(q))
             .collect();
         around.sort_unstable();

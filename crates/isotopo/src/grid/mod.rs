@@ -25,6 +25,12 @@ pub(crate) fn random_mask(rng: &mut crate::test_rng::Rng, n: usize, percent: u64
     vol
 }
 
+/// The sample `d` away from `q`.
+#[inline]
+pub(crate) fn shift(q: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [q[0] + d[0], q[1] + d[1], q[2] + d[2]]
+}
+
 /// The samples of a small box `lo ..= hi`, numbered x fastest, for searches that keep a flag or
 /// a mark per sample of the box (an array, not a hash set of positions).
 #[derive(Clone, Copy, Debug)]

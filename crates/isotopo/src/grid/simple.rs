@@ -121,12 +121,10 @@ pub(crate) fn topological_numbers(
     conn: Connectivity,
 ) -> (usize, usize) {
     let nb = neighbourhood();
-    let dims = vol.dims.map(|n| n as i64);
     let mut inside = [false; 26];
     for (k, d) in nb.offsets.iter().enumerate() {
-        let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
-        let within = (0..3).all(|c| r[c] >= 0 && r[c] < dims[c]);
-        inside[k] = within && vol.get(r[0], r[1], r[2]);
+        let r = super::shift(q, *d);
+        inside[k] = vol.get(r[0], r[1], r[2]);
     }
     let outside: [bool; 26] = std::array::from_fn(|k| !inside[k]);
     let six_inside = conn == Connectivity::Six;
@@ -146,13 +144,11 @@ pub(crate) fn same_piece(
     b: [i64; 3],
 ) -> bool {
     let nb = neighbourhood();
-    let dims = vol.dims.map(|n| n as i64);
     let mut member = [false; 26];
     let (mut ka, mut kb) = (None, None);
     for (k, d) in nb.offsets.iter().enumerate() {
-        let r = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
-        let within = (0..3).all(|c| r[c] >= 0 && r[c] < dims[c]);
-        member[k] = (within && vol.get(r[0], r[1], r[2])) == side;
+        let r = super::shift(q, *d);
+        member[k] = vol.get(r[0], r[1], r[2]) == side;
         if r == a {
             ka = Some(k);
         }
@@ -392,7 +388,7 @@ impl Exterior {
             }
             let q = region.sample(r);
             for d in earlier_offsets(six) {
-                let n = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+                let n = super::shift(q, *d);
                 if let Some(m) = region.index(n) {
                     links.push((pieces + m) as u32);
                 }

@@ -26,7 +26,7 @@
 
 use crate::error::{Error, Result};
 use crate::grid::simple::{neighbourhood, FACES};
-use crate::grid::MaskVolume;
+use crate::grid::{shift, MaskVolume};
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
 use crate::topology::cases::{cases, Connectivity};
@@ -235,10 +235,6 @@ impl Side {
             PartKind::Cavity
         }
     }
-}
-
-fn add(q: [i64; 3], d: [i64; 3]) -> [i64; 3] {
-    [q[0] + d[0], q[1] + d[1], q[2] + d[2]]
 }
 
 /// A connected set of samples of one side.
@@ -585,7 +581,7 @@ fn shortest_join(
     let classify = |q: [i64; 3]| {
         let mut stays = false;
         for &d in side.offsets() {
-            let n = add(q, d);
+            let n = shift(q, d);
             if vol.get(n[0], n[1], n[2]) == side.inside {
                 match touch(owner, me, n) {
                     Touch::Blocked => return None,
@@ -605,7 +601,7 @@ fn shortest_join(
         let mut next = Vec::new();
         for &q in &layer {
             for &d in side.offsets() {
-                let n = add(q, d);
+                let n = shift(q, d);
                 if !vol.contains(n)
                     || vol.get(n[0], n[1], n[2]) == side.inside
                     || parent.contains_key(&n)
@@ -660,7 +656,7 @@ fn verify_join(
     let ends: Vec<[i64; 3]> = side
         .offsets()
         .iter()
-        .map(|&d| add(end, d))
+        .map(|&d| shift(end, d))
         .filter(|n| {
             vol.get(n[0], n[1], n[2]) == side.inside && touch(owner, me, *n) == Touch::Stays
         })
@@ -670,7 +666,7 @@ fn verify_join(
     let mut beside: Vec<[i64; 3]> = Vec::new();
     for &q in path {
         for &d in space.offsets() {
-            let n = add(q, d);
+            let n = shift(q, d);
             if vol.get(n[0], n[1], n[2]) == space.inside && !path.contains(&n) {
                 beside.push(n);
             }
@@ -718,7 +714,7 @@ fn connected_near(vol: &MaskVolume, side: Side, seeds: &[[i64; 3]], path: &[[i64
         let mut stack = vec![first];
         while let Some(q) = stack.pop() {
             for &d in side.offsets() {
-                let n = add(q, d);
+                let n = shift(q, d);
                 if inside_box(n)
                     && vol.get(n[0], n[1], n[2]) == side.inside
                     && seen.insert(n, ()).is_none()
