@@ -260,6 +260,11 @@ struct Labels {
 }
 
 impl Labels {
+    /// The memory the labels of a box of `dims` samples take: reserved before they are made.
+    fn bytes(dims: [i64; 3]) -> u64 {
+        dims.iter().product::<i64>() as u64 * std::mem::size_of::<u32>() as u64
+    }
+
     fn index(&self, q: [i64; 3]) -> Option<usize> {
         let p = q.map(|x| x - self.lo);
         let d = self.dims;
@@ -283,10 +288,9 @@ fn label(vol: &MaskVolume, side: Side) -> Result<(Vec<Part>, Labels)> {
     let lo = if side.inside { 0 } else { -1 };
     let hi = vol.dims.map(|d| d as i64 - lo);
     let dims = hi.map(|h| h - lo);
-    let samples = (dims[0] * dims[1] * dims[2]) as u64;
     crate::memory::reserve(
         "the labels of the components-and-cavities phase (4 bytes a sample)",
-        samples * 4,
+        Labels::bytes(dims),
     )?;
     let mut labels = Labels {
         lo,
@@ -803,6 +807,21 @@ mod tests {
             samples_changed,
             bbox: BBox::EMPTY,
             path: Vec::new(),
+        }
+    }
+
+    /// The labels reserve the memory they then take: 4 bytes a sample, over the volume for the
+    /// solid and over the volume and its padding for the space round it.
+    #[test]
+    fn the_labels_reserve_the_memory_they_take() {
+        let vol = MaskVolume::new([3, 4, 5], Frame::identity());
+        for (side, samples) in [
+            (Side::solid(Connectivity::Six), 3 * 4 * 5),
+            (Side::space(Connectivity::Six), 5 * 6 * 7),
+        ] {
+            let (_, labels) = label(&vol, side).unwrap();
+            assert_eq!(labels.ids.len(), samples);
+            assert_eq!(Labels::bytes(labels.dims), 4 * samples as u64);
         }
     }
 
