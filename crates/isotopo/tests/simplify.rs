@@ -1133,6 +1133,31 @@ fn a_handle_the_step_opened_is_taken_back_after_later_mends() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// At tau 0 no pass closes a handle, so the well-composed step opens none: a handle opened
+/// there would have to be taken back. On the cranium crop above, where filling opens one at
+/// tau 2, every step at tau 0 reports none opened, in every mode, connectivity and axis.
+#[test]
+fn at_tau_0_the_step_opens_no_handle() {
+    let vol = common::fixture("cranium-moved-opening.txt");
+    for mode in [Mode::FillOnly, Mode::CutOnly, Mode::Both] {
+        for conn in BOTH {
+            for axis in [Axis::Z, Axis::X] {
+                let traces = Traces::default();
+                let mut m = common::masks(&vol, 0.0, conn, axis);
+                let opts = options(0.0, mode, conn);
+                simplify(&mut m, &opts, &Affine::IDENTITY, &traces).expect("simplified");
+                let opened = traces.numbers_before(" opened");
+                assert!(!opened.is_empty(), "no step ran");
+                assert!(
+                    opened.iter().all(|&n| n == 0),
+                    "{mode:?}, conn {}, axis {axis:?}: opened {opened:?}",
+                    conn.number()
+                );
+            }
+        }
+    }
+}
+
 /// A progress reporter that keeps the trace lines.
 #[derive(Default)]
 struct Traces(std::sync::Mutex<Vec<String>>);
@@ -1141,6 +1166,20 @@ impl Traces {
     fn count(&self, what: &str) -> usize {
         let lines = self.0.lock().expect("trace lines");
         lines.iter().filter(|l| l.contains(what)).count()
+    }
+
+    /// The number just before `what` on each line that has it ("3 opened" gives 3).
+    fn numbers_before(&self, what: &str) -> Vec<usize> {
+        let lines = self.0.lock().expect("trace lines");
+        lines
+            .iter()
+            .filter_map(|l| l.split_once(what))
+            .map(|(before, _)| {
+                let n = before.rsplit(' ').next().unwrap_or_default();
+                n.parse()
+                    .unwrap_or_else(|_| panic!("no number before {what:?}: {before}"))
+            })
+            .collect()
     }
 }
 
