@@ -86,3 +86,43 @@ pub(super) fn wall_near_loop(wall: &BBox, l: &Loop, margin: i64) -> bool {
 pub(super) fn overlaps(a: &BBox, b: &BBox, margin: i64) -> bool {
     (0..3).all(|k| a.min[k] - margin <= b.max[k] && b.min[k] <= a.max[k] + margin)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::surface::Vertex;
+
+    /// A wall counts as near a loop when it comes within the margin of one of the loop's
+    /// edges, not of the loop's box: an L-shaped loop's box holds a corner far from it.
+    ///
+    /// ```text
+    ///   y 9  W W . . . . . . . . |      W: the wall in the far corner (7 from the loop)
+    ///        . . . . . . . . . . |      |: edges along y at x = 10
+    ///   y 0  - - - - - - - - - -        -: edges along x at y = 0
+    /// ```
+    #[test]
+    fn a_wall_is_near_a_loop_only_beside_one_of_its_edges() {
+        let along_x = (0..10).map(|x| Vertex {
+            p: [x, 0, 0],
+            axis: 0,
+        });
+        let along_y = (0..10).map(|y| Vertex {
+            p: [10, y, 0],
+            axis: 1,
+        });
+        let l = Loop {
+            vertices: along_x.chain(along_y).collect(),
+            points: Vec::new(),
+            length: 20,
+            length_mm: 20.0,
+            encloses: Encloses::Material,
+        };
+        let wall = |min: [i64; 3], max: [i64; 3]| BBox { min, max };
+        assert!(!wall_near_loop(&wall([0, 8, 0], [1, 9, 0]), &l, 2));
+        assert!(wall_near_loop(&wall([0, 2, 0], [1, 3, 0]), &l, 2));
+        assert!(!wall_near_loop(&wall([0, 3, 0], [1, 4, 0]), &l, 2));
+        assert!(wall_near_loop(&wall([8, 8, 2], [8, 9, 2]), &l, 2));
+        assert!(!wall_near_loop(&wall([8, 8, 3], [8, 9, 3]), &l, 2));
+        assert!(!wall_near_loop(&wall([30, 30, 0], [31, 31, 0]), &l, 2));
+    }
+}
