@@ -1307,6 +1307,33 @@ mod tests {
         assert!(checked > 500, "{checked} ribbons");
     }
 
+    /// Each step hands over, once, the surfels of the slice it swept: the loop searches keep
+    /// them as that slice's, so they must be what building the slice afresh gives (slice -1,
+    /// under the volume's first plane, included). Random masks, both connectivities.
+    #[test]
+    fn a_step_hands_over_the_slice_it_swept() {
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let n = 8;
+            let vol = crate::grid::random_mask(&mut rng, n, 50);
+            let mut sweeper = Sweeper::new(conn);
+            for s in -1..n as i64 {
+                sweeper.step(&vol).unwrap();
+                let (at, got) = sweeper.take_surfels().expect("the slice just swept");
+                let want = SliceSurfels::build(vol.plane(s), vol.plane(s + 1), s as i32, conn);
+                assert_eq!(at, s);
+                assert!(!want.cubes.is_empty(), "{conn:?} slice {s} is empty");
+                let seen = |x: &SliceSurfels| {
+                    let ribbons = x.ribbons.len();
+                    (x.z, x.cubes.clone(), x.piece_ribbon.clone(), ribbons)
+                };
+                assert_eq!(seen(&got), seen(&want), "{conn:?} slice {s}");
+                assert_eq!((&got.bottom, &got.top), (&want.bottom, &want.top));
+                assert!(sweeper.take_surfels().is_none(), "handed over twice");
+            }
+        }
+    }
+
     /// A handle's kind is spelled one way everywhere: its name (the HTML report's) is its
     /// JSON value (the JSON and CSV reports').
     #[test]
