@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Mutation testing (not run by CI): cargo mutants on the given source files, in a scratch copy
-# of the committed tree, with incremental release builds (a mutant rebuilds in 2-6 s instead of
-# 35-70 s). The tests are those that reach simplify, closure, loops and sweep, less the one that
-# takes a minute (fill_only_and_cut_only_on_every_shape): about 28 s a mutant. compose's tests
-# are in because simplify composes its output (a field of its report went missing unseen).
+# of the committed tree, with incremental release builds. The tests are those that reach
+# simplify, closure, loops and sweep, less the one that takes a minute
+# (fill_only_and_cut_only_on_every_shape); compose's tests are in because simplify composes its
+# output (a field of its report went missing unseen). Only those test targets are built: they
+# are given with --cargo-arg, which reaches the build step too (--cargo-test-arg did not, and
+# every test target of the package was built for each mutant).
 #
 #   scripts/mutants.sh OUT_DIR FILE... [-- extra cargo-mutants args, e.g. --shard 1/8 or --iterate]
 #
@@ -21,9 +23,9 @@ git archive HEAD | tar -x -C "$scratch"
 cd "$scratch"
 export CARGO_PROFILE_RELEASE_INCREMENTAL=true CARGO_PROFILE_RELEASE_DEBUG=false
 cargo mutants --in-place "${files[@]}" --test-package isotopo --profile release --timeout 150 \
-  --cargo-test-arg=--test=jobs --cargo-test-arg=--test=simplify \
-  --cargo-test-arg=--test=oracle_systole --cargo-test-arg=--test=sweep \
-  --cargo-test-arg=--test=loops --cargo-test-arg=--test=parts --cargo-test-arg=--test=compose \
-  --cargo-test-arg=--lib \
+  --cargo-arg=--test=jobs --cargo-arg=--test=simplify \
+  --cargo-arg=--test=oracle_systole --cargo-arg=--test=sweep \
+  --cargo-arg=--test=loops --cargo-arg=--test=parts --cargo-arg=--test=compose \
+  --cargo-arg=--lib \
   --cargo-test-arg=-- --cargo-test-arg=--skip --cargo-test-arg=fill_only_and_cut_only_on_every_shape \
   -o "$out" "$@"
