@@ -12,6 +12,10 @@ use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 const IO_BUFFER: usize = 1 << 20;
+/// The buffer in front of an uncompressed file: a slice read at least this long goes straight
+/// from the file into the slice's bytes (a 512 × 512 int16 slice is 512 KiB); a bigger buffer
+/// would copy every slice through it once more.
+const PLAIN_BUFFER: usize = 1 << 16;
 /// Deflate cannot shrink data by much more than 1032:1; a header claiming more samples than that
 /// is corrupt, and is refused before allocating.
 const MAX_DEFLATE_RATIO: u64 = 1100;
@@ -238,16 +242,16 @@ impl SliceReader for StreamReader {
         let mut file = File::open(path).map_err(|e| Error::io(path, "opening", e))?;
         file.seek(SeekFrom::Start(self.loc.offset))
             .map_err(|e| Error::io(path, "seeking in", e))?;
-        let buffered = BufReader::with_capacity(IO_BUFFER, file);
+        let buffered = |capacity| BufReader::with_capacity(capacity, file);
         let mut input: Box<dyn Read + Send> = match self.loc.compression {
-            Compression::None => Box::new(buffered),
+            Compression::None => Box::new(buffered(PLAIN_BUFFER)),
             Compression::Gzip => Box::new(BufReader::with_capacity(
                 IO_BUFFER,
-                MultiGzDecoder::new(buffered),
+                MultiGzDecoder::new(buffered(IO_BUFFER)),
             )),
             Compression::Zlib => Box::new(BufReader::with_capacity(
                 IO_BUFFER,
-                ZlibDecoder::new(buffered),
+                ZlibDecoder::new(buffered(IO_BUFFER)),
             )),
         };
         if self.loc.skip > 0 {
