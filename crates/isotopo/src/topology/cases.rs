@@ -650,6 +650,24 @@ fn triangulate_tube(a: &[u8], b: &[u8]) -> Vec<[u8; 3]> {
     tris
 }
 
+/// For each case: is its cube cut into the same pieces, in the same order, with the same face
+/// segments and Euler characteristic shares, under both connectivities? All but the cases with
+/// a face whose inside corners are diagonal or with two opposite corners alone are.
+pub fn cut_alike() -> &'static [bool; 256] {
+    static ALIKE: OnceLock<[bool; 256]> = OnceLock::new();
+    ALIKE.get_or_init(|| {
+        let (six, twenty_six) = (cases(Connectivity::Six), cases(Connectivity::TwentySix));
+        std::array::from_fn(|c| {
+            let (a, b) = (&six[c], &twenty_six[c]);
+            a.n_pieces == b.n_pieces
+                && a.chi4 == b.chi4
+                && a.ribbon_chi4 == b.ribbon_chi4
+                && a.z_upper == b.z_upper
+                && a.face_owner == b.face_owner
+        })
+    })
+}
+
 /// The 256 cases for each connectivity, derived once.
 pub fn cases(conn: Connectivity) -> &'static [Case; 256] {
     static SIX: OnceLock<Box<[Case; 256]>> = OnceLock::new();
@@ -669,6 +687,20 @@ mod tests {
     use super::*;
 
     const BOTH: [Connectivity; 2] = [Connectivity::Six, Connectivity::TwentySix];
+
+    /// Exactly the cubes without a critical face or corner pair are cut alike: the genus pass
+    /// takes their pieces under one connectivity for the other's.
+    #[test]
+    fn cubes_are_cut_alike_under_both_connectivities_unless_critical() {
+        let alike = cut_alike();
+        for c in 0..=255u8 {
+            let diagonal_face = (0..6).any(|f| matches!(face_states(c, f), 0b0101 | 0b1010));
+            let critical = diagonal_face || crate::topology::critical::critical_cube(c);
+            assert_eq!(alike[c as usize], !critical, "case {c:#010b}");
+        }
+        // 128 of the 256 cases have a critical face or corner pair (counted by a separate script).
+        assert_eq!(alike.iter().filter(|&&a| a).count(), 128);
+    }
 
     /// Body-diagonal corner pairs.
     fn body_diagonal(a: u8, b: u8) -> bool {

@@ -163,25 +163,6 @@ pub fn each_critical(
     }
 }
 
-/// Whether some unit face of a plane shows one diagonal, word by word: with `a`, `b` the
-/// corners at columns `i`, `i + 1` of one row and `c`, `d` those of the next,
-///
-/// ```text
-///   c d      a diagonal when a == d, b == c and a != b
-///   a b
-/// ```
-pub fn has_diagonal_face(plane: &PlaneMask) -> bool {
-    // Each bit's right neighbour: the word shifted, with the next word's first bit on top.
-    let next = |r: &[u64], w: usize| (r[w] >> 1) | r.get(w + 1).map_or(0, |x| x << 63);
-    (0..=plane.ny).any(|j| {
-        let (r0, r1) = (plane.row(j), plane.row(j + 1));
-        (0..plane.words).any(|w| {
-            let (a, b, c, d) = (r0[w], next(r0, w), r1[w], next(r1, w));
-            !(a ^ d) & !(b ^ c) & (a ^ b) != 0
-        })
-    })
-}
-
 /// For each pair of opposite corners (k, 7 - k), k < 4, the other six.
 const OTHERS: [[usize; 6]; 4] = [
     [1, 2, 3, 4, 5, 6],
@@ -275,31 +256,6 @@ mod tests {
         assert!(critical_cube(bits(&[[0, 0, 0], [1, 1, 1]])));
         assert!(critical_cube(!bits(&[[1, 0, 0], [0, 1, 1]])));
         assert!(!critical_cube(bits(&[[0, 0, 0], [1, 1, 0]])));
-    }
-
-    /// The word-wise test agrees with the cube-wise count of a plane's own faces (the cubes
-    /// between a plane and itself own its z-faces and have no other critical cell), on random
-    /// planes of widths across a word's edge.
-    #[test]
-    fn diagonal_faces_word_by_word() {
-        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
-        let mut random = || rng.next_u64();
-        let mut seen = [0, 0];
-        for round in 0..400 {
-            let (nx, ny) = (1 + round % 70, 1 + round % 5);
-            let mut p = PlaneMask::empty(nx, ny);
-            // Sparse to dense: few planes of the dense ones lack a diagonal.
-            let density = 1 + round % 9;
-            for y in 0..ny {
-                for x in 0..nx {
-                    p.set(x, y, random() % 10 < density as u64);
-                }
-            }
-            let expected = count_critical(&p, &p).faces > 0;
-            assert_eq!(has_diagonal_face(&p), expected, "round {round}");
-            seen[usize::from(expected)] += 1;
-        }
-        assert!(seen[0] > 50 && seen[1] > 50, "{seen:?}");
     }
 
     /// The word-wise count equals the cube-by-cube one (`each_critical`), on random planes of

@@ -440,35 +440,10 @@ pub struct Agreement {
 /// The per-slice work of the genus pass beyond the surface: the other connectivity's surfels,
 /// critical cells, samples at the isovalue.
 struct SliceSurvey {
-    other: SliceSurfels,
+    /// `None` where they are the chosen connectivity's (see [`SliceSurfels::build_both`]).
+    other: Option<SliceSurfels>,
     critical: CriticalCounts,
     at_iso: u64,
-}
-
-/// The survey of the slice between `lo` and `up`, whose surface under the chosen connectivity
-/// is `surfels`. Where no cube of the slice has a critical face or is critical itself, the
-/// other connectivity cuts the same pieces in every cube: its surfels are a copy (most slices
-/// of a scan; building them again was most of the survey's time).
-fn survey_slice(
-    lo: &PlaneMask,
-    up: &PlaneMask,
-    surfels: &SliceSurfels,
-    values: Option<&Samples>,
-    classifier: &Classifier,
-    conn: Connectivity,
-) -> SliceSurvey {
-    // The cubes between the planes own their lower z-face; the upper one is the next slice's.
-    let critical = super::critical::count_critical(lo, up);
-    let other = if critical.total() == 0 && !super::critical::has_diagonal_face(up) {
-        surfels.clone()
-    } else {
-        SliceSurfels::build(lo, up, surfels.z, conn.other())
-    };
-    SliceSurvey {
-        other,
-        critical,
-        at_iso: values.map_or(0, |v| classifier.count_on_iso(v)),
-    }
 }
 
 /// Planes `z0 + 1 ..= z1` of a batch, read ahead: their masks and samples (`None` for the
@@ -523,9 +498,10 @@ type BuiltSlice = (SliceSurfels, Vec<f64>, SliceSurvey);
 struct GenusTracking {
     chosen: SurfaceTracker,
     other: SurfaceTracker,
-    /// The last slice added, and its ribbons' base index, for each tracker.
+    /// The last slice added, and its ribbons' base index, for each tracker (`None` for the
+    /// other connectivity's surfels where they are the chosen ones).
     prev: Option<(SliceSurfels, u32)>,
-    prev_other: Option<(SliceSurfels, u32)>,
+    prev_other: Option<(Option<SliceSurfels>, u32)>,
     agreement: Agreement,
 }
 
@@ -539,11 +515,14 @@ impl GenusTracking {
         for (s, areas, survey) in built {
             let prev = self.prev.as_ref().map(|(p, b)| (p, *b));
             let base = self.chosen.add_slice(&s, &areas, prev, conn)?;
+            let prev_other = match (&self.prev_other, prev) {
+                (Some((o, b)), Some((p, _))) => Some((o.as_ref().unwrap_or(p), *b)),
+                _ => None,
+            };
+            let o = survey.other.as_ref().unwrap_or(&s);
+            let base_other = self.other.add_slice(o, &[], prev_other, conn.other())?;
             self.prev = Some((s, base));
-            let o = survey.other;
-            let prev = self.prev_other.as_ref().map(|(p, b)| (p, *b));
-            let base = self.other.add_slice(&o, &[], prev, conn.other())?;
-            self.prev_other = Some((o, base));
+            self.prev_other = Some((survey.other, base_other));
             self.agreement.critical.add(survey.critical);
             self.agreement.samples_at_iso += survey.at_iso;
             progress.advance(1);
@@ -602,7 +581,7 @@ pub fn genus(
                 };
                 let (up, up_v) = (&cur.planes[k], cur.values[k].as_ref());
                 let z = z0 + k as i32;
-                let s = SliceSurfels::build(lo, up, z, conn);
+                let (s, other) = SliceSurfels::build_both(lo, up, z, conn);
                 let sv = SliceValues {
                     lower: lo_v,
                     upper: up_v,
@@ -611,7 +590,11 @@ pub fn genus(
                     scaling: info.scaling,
                 };
                 let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
-                let survey = survey_slice(lo, up, &s, up_v, &classifier, conn);
+                let survey = SliceSurvey {
+                    other,
+                    critical: super::critical::count_critical(lo, up),
+                    at_iso: up_v.map_or(0, |v| classifier.count_on_iso(v)),
+                };
                 (s, areas, survey)
             })
             .collect();

@@ -9,7 +9,7 @@
 //!
 //! Pieces are numbered per slice: cube `q` owns pieces `first_piece .. first_piece + n`.
 
-use super::cases::{cases, Case, Connectivity, NONE};
+use super::cases::{cases, cut_alike, Case, Connectivity, NONE};
 use super::mask::PlaneMask;
 use crate::unionfind::UnionFind;
 
@@ -27,7 +27,7 @@ pub struct Cube {
 }
 
 /// A connected piece of surface within one slice.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Ribbon {
     /// 4 × Euler characteristic of the ribbon as a surface with boundary.
     pub chi4: i32,
@@ -69,7 +69,7 @@ impl Ribbon {
 }
 
 /// Surfels of the slice between planes `z` and `z + 1`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct SliceSurfels {
     /// Lower plane (-1 ..= nz - 1).
     pub z: i32,
@@ -177,7 +177,111 @@ impl SliceSurfels {
         self.ny = lower.ny;
         let pieces = self.list_mixed_cubes(lower, upper, table);
         uf.clear(pieces as usize);
-        self.join_side_faces(table, uf);
+        self.join_side_faces(table, uf, None);
+        self.label_ribbons(table, uf);
+    }
+
+    /// Builds the surfels of the slice under `conn`, and under the other connectivity where
+    /// they differ (`None`: no cube of the slice is cut differently, see [`cut_alike`]).
+    ///
+    /// The other connectivity's slice is derived from this one: the side faces between cubes
+    /// cut alike are joined once, for both; only those of the other cubes are joined again.
+    pub fn build_both(
+        lower: &PlaneMask,
+        upper: &PlaneMask,
+        z: i32,
+        conn: Connectivity,
+    ) -> (SliceSurfels, Option<SliceSurfels>) {
+        let table = cases(conn);
+        let mut s = SliceSurfels {
+            z,
+            nx: lower.nx,
+            ny: lower.ny,
+            ..Default::default()
+        };
+        let pieces = s.list_mixed_cubes(lower, upper, table);
+        let mut uf = UnionFind::new(pieces as usize);
+        let mut deferred = Vec::new();
+        s.join_side_faces(table, &mut uf, Some(&mut deferred));
+        let alike = cut_alike();
+        let other = match s.cubes.iter().all(|c| alike[c.case as usize]) {
+            true => None,
+            false => Some(s.other_connectivity(&uf, &deferred, conn.other())),
+        };
+        for f in &deferred {
+            let (a, b) = (s.cubes[f.a as usize], s.cubes[f.b as usize]);
+            let (ca, cb) = (&table[a.case as usize], &table[b.case as usize]);
+            join_face(&mut uf, ca, a.first_piece, f.fa, cb, b.first_piece, f.fb);
+        }
+        s.label_ribbons(table, &mut uf);
+        (s, other)
+    }
+
+    /// The slice under connectivity `conn`, the other one: from this slice's cubes, and its
+    /// pieces joined across every side face but the `deferred` ones (those of cubes not cut
+    /// alike), in `fragments`. Its pieces and ribbons are numbered as a fresh build numbers them.
+    fn other_connectivity(
+        &self,
+        fragments: &UnionFind,
+        deferred: &[SideFace],
+        conn: Connectivity,
+    ) -> SliceSurfels {
+        let table = cases(conn);
+        let alike = cut_alike();
+        let mut o = SliceSurfels {
+            z: self.z,
+            nx: self.nx,
+            ny: self.ny,
+            cubes: self.cubes.clone(),
+            row_start: self.row_start.clone(),
+            bottom: self.bottom.clone(),
+            top: self.top.clone(),
+            ..Default::default()
+        };
+        // Each cube's first node in the union-find: a cube cut alike keeps this slice's pieces;
+        // the others' pieces are new nodes.
+        let mut uf = fragments.clone();
+        let mut node = Vec::with_capacity(o.cubes.len());
+        let mut pieces = 0u32;
+        for cube in &mut o.cubes {
+            let n = table[cube.case as usize].n_pieces as u32;
+            node.push(match alike[cube.case as usize] {
+                true => cube.first_piece,
+                false => {
+                    let first = uf.len() as u32;
+                    (0..n).for_each(|_| _ = uf.push());
+                    first
+                }
+            });
+            cube.first_piece = pieces;
+            pieces += n;
+        }
+        for f in deferred {
+            let (a, b) = (f.a as usize, f.b as usize);
+            let ca = &table[o.cubes[a].case as usize];
+            let cb = &table[o.cubes[b].case as usize];
+            join_face(&mut uf, ca, node[a], f.fa, cb, node[b], f.fb);
+        }
+        // Ribbons labelled in order of their first piece, as `UnionFind::labels` labels them.
+        let mut label = vec![u32::MAX; uf.len()];
+        let mut n = 0u32;
+        o.piece_ribbon = Vec::with_capacity(pieces as usize);
+        for (q, cube) in o.cubes.iter().enumerate() {
+            for k in 0..table[cube.case as usize].n_pieces as u32 {
+                let root = uf.find(node[q] + k) as usize;
+                if label[root] == u32::MAX {
+                    label[root] = n;
+                    n += 1;
+                }
+                o.piece_ribbon.push(label[root]);
+            }
+        }
+        o.sum_ribbons(table, n as usize);
+        o
+    }
+
+    /// Labels the ribbons the pieces joined in `uf` form, and sums them.
+    fn label_ribbons(&mut self, table: &[Case; 256], uf: &mut UnionFind) {
         let (labels, n) = uf.labels();
         self.piece_ribbon = labels;
         self.sum_ribbons(table, n);
@@ -216,7 +320,15 @@ impl SliceSurfels {
     ///   row j     [q-1][ q ]     -x face: the previous cube of the row
     ///   row j-1        [ b ]     -y face: cube b, found by walking row j-1 alongside row j
     /// ```
-    fn join_side_faces(&mut self, table: &[Case; 256], uf: &mut UnionFind) {
+    ///
+    /// With `deferred`, the faces of cubes not [`cut_alike`] are listed there instead of joined.
+    fn join_side_faces(
+        &mut self,
+        table: &[Case; 256],
+        uf: &mut UnionFind,
+        mut deferred: Option<&mut Vec<SideFace>>,
+    ) {
+        let alike = cut_alike();
         self.bottom.clear();
         self.top.clear();
         let mut below_row = 0usize; // walks row j-1 alongside row j
@@ -231,18 +343,32 @@ impl SliceSurfels {
             for q in r0..r1 {
                 let cube = self.cubes[q];
                 let case = &table[cube.case as usize];
+                let mut join = |b: usize, fa: usize, fb: usize| {
+                    let nb = self.cubes[b];
+                    match deferred.as_deref_mut() {
+                        Some(d) if !alike[cube.case as usize] || !alike[nb.case as usize] => d
+                            .push(SideFace {
+                                a: q as u32,
+                                fa,
+                                b: b as u32,
+                                fb,
+                            }),
+                        _ => {
+                            let cb = &table[nb.case as usize];
+                            join_face(uf, case, cube.first_piece, fa, cb, nb.first_piece, fb)
+                        }
+                    }
+                };
                 if case.face_owner[0][0] != NONE {
-                    let prev = self.cubes[q - 1];
-                    debug_assert!(prev.i + 1 == cube.i && prev.j == cube.j);
-                    join_face(uf, case, &cube, 0, &table[prev.case as usize], &prev, 1);
+                    debug_assert!(self.cubes[q - 1].i + 1 == cube.i);
+                    join(q - 1, 0, 1);
                 }
                 if case.face_owner[2][0] != NONE {
                     while below_row < p1 && self.cubes[below_row].i < cube.i {
                         below_row += 1;
                     }
-                    let nb = self.cubes[below_row];
-                    debug_assert!(nb.i == cube.i && nb.j + 1 == cube.j);
-                    join_face(uf, case, &cube, 2, &table[nb.case as usize], &nb, 3);
+                    debug_assert!(self.cubes[below_row].i == cube.i);
+                    join(below_row, 2, 3);
                 }
                 if case.face_owner[4][0] != NONE {
                     self.bottom.push(q as u32);
@@ -314,9 +440,20 @@ impl SliceSurfels {
     }
 }
 
-/// Unites the pieces on either side of a shared face: face `fa` of cube `a`, face `fb` of `b`.
+/// A side face shared by two cubes of a slice: face `fa` of cube `a`, face `fb` of cube `b`
+/// (indices into the slice's cubes).
+#[derive(Clone, Copy, Debug)]
+struct SideFace {
+    a: u32,
+    fa: usize,
+    b: u32,
+    fb: usize,
+}
+
+/// Unites the pieces on either side of a shared face: face `fa` of a cube of case `ca` whose
+/// first piece is node `a`, face `fb` of one of case `cb` whose first piece is node `b`.
 #[inline]
-fn join_face(uf: &mut UnionFind, ca: &Case, a: &Cube, fa: usize, cb: &Case, b: &Cube, fb: usize) {
+fn join_face(uf: &mut UnionFind, ca: &Case, a: u32, fa: usize, cb: &Case, b: u32, fb: usize) {
     for slot in 0..2 {
         let (oa, ob) = (ca.face_owner[fa][slot], cb.face_owner[fb][slot]);
         if oa == NONE {
@@ -326,6 +463,71 @@ fn join_face(uf: &mut UnionFind, ca: &Case, a: &Cube, fa: usize, cb: &Case, b: &
             ob != NONE,
             "a shared face has the same segments on both sides"
         );
-        uf.union(a.first_piece + oa as u32, b.first_piece + ob as u32);
+        uf.union(a + oa as u32, b + ob as u32);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A random plane: each sample inside with probability `density` (in 256ths).
+    fn random_plane(
+        rng: &mut crate::test_rng::Rng,
+        nx: usize,
+        ny: usize,
+        density: u64,
+    ) -> PlaneMask {
+        let mut p = PlaneMask::empty(nx, ny);
+        for y in 0..ny {
+            for x in 0..nx {
+                p.set(x, y, rng.below(256) < density);
+            }
+        }
+        p
+    }
+
+    /// Both slices of `build_both` are those two fresh builds make, field by field, on random
+    /// planes of every density (sparse ones have no critical cube, dense noise many), both
+    /// connectivities; and the other connectivity's is `None` exactly where every cube is cut
+    /// alike.
+    #[test]
+    fn both_connectivities_built_at_once_are_built_as_each_alone() {
+        let mut rng = crate::test_rng::Rng(0x51ce_5eed_0dd5_1ce5);
+        let (mut shared, mut derived) = (0, 0);
+        for round in 0..400 {
+            let (nx, ny) = (1 + rng.below(70) as usize, 1 + rng.below(9) as usize);
+            let density = [4, 40, 128, 200, 250][round % 5];
+            let lower = random_plane(&mut rng, nx, ny, density);
+            let upper = random_plane(&mut rng, nx, ny, density);
+            for conn in [Connectivity::Six, Connectivity::TwentySix] {
+                let (s, other) = SliceSurfels::build_both(&lower, &upper, 3, conn);
+                assert_eq!(
+                    s,
+                    SliceSurfels::build(&lower, &upper, 3, conn),
+                    "round {round}"
+                );
+                let fresh = SliceSurfels::build(&lower, &upper, 3, conn.other());
+                let alike = s.cubes.iter().all(|c| cut_alike()[c.case as usize]);
+                assert_eq!(other.is_none(), alike, "round {round}");
+                match other {
+                    Some(o) => {
+                        assert_eq!(o, fresh, "round {round} {conn:?}");
+                        derived += 1;
+                    }
+                    // The other connectivity's tracker reads these with its own table.
+                    None => {
+                        assert_eq!(s.cubes, fresh.cubes, "round {round}");
+                        assert_eq!(s.piece_ribbon, fresh.piece_ribbon, "round {round}");
+                        assert_eq!(s.ribbons, fresh.ribbons, "round {round}");
+                        shared += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            shared > 100 && derived > 300,
+            "{shared} shared, {derived} derived"
+        );
     }
 }
