@@ -291,3 +291,37 @@ fn areas_match_the_mesh_and_the_sphere() {
         "area {area} vs 4πr² = {sphere}"
     );
 }
+
+/// A rotated scan has the same surface areas as the unrotated one: the genus pass maps each
+/// triangle's vector area through the affine's cofactor matrix, not only through its diagonal.
+#[test]
+fn areas_do_not_change_when_the_scan_is_rotated() {
+    let dims = [23, 21, 9];
+    let vol = InMemoryVolume::from_fn(dims, |x, y, z| {
+        let (x, y, z) = (x as f64 - 11.2, y as f64 - 10.1, z as f64 - 4.3);
+        // A torus: its area depends on the spacing's anisotropy, so a wrong matrix shows.
+        let ring = (x * x + y * y).sqrt() - 6.0;
+        (3.0 - (ring * ring + z * z).sqrt()) as f32
+    });
+    let spacing = [0.7, 1.1, 1.6];
+    let (c, s) = (0.6f64, 0.8f64);
+    // Columns: the unit directions of i, j, k (a rotation about z, then one about x).
+    let rotated = [[c, s * c, s * s], [s, -c * c, -c * s], [0.0, s, -c]];
+    let mut areas = Vec::new();
+    for direction in [[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], rotated] {
+        let mut v = vol.clone();
+        v.info.affine = isotopo::volume::Affine::from_parts(direction, spacing, [5.0, -3.0, 2.0]);
+        let g = common::run_genus(&v, 0.0, Connectivity::Six);
+        assert_eq!((g.b0, g.b1, g.b2), (1, 1, 0));
+        areas.push(g.surfaces[0].area);
+    }
+    assert!(
+        (areas[0] - areas[1]).abs() < 1e-9 * areas[0],
+        "axis-aligned area {}, rotated {}",
+        areas[0],
+        areas[1]
+    );
+    // The anisotropy matters: with unit spacing the area is another.
+    let g = common::run_genus(&vol, 0.0, Connectivity::Six);
+    assert!((g.surfaces[0].area - areas[0]).abs() > 0.1 * areas[0]);
+}

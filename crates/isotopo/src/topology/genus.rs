@@ -11,7 +11,7 @@ use super::cases::{cases, Connectivity};
 use super::critical::CriticalCounts;
 use super::mask::{Classifier, Inside, PlaneMask};
 use super::slice::SliceSurfels;
-use super::values::{edge_point, SliceValues};
+use super::values::{edge_point, SliceValues, CROSSED_EDGES};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::unionfind::UnionFind;
@@ -361,7 +361,9 @@ fn areas_typed<T: Sample>(
         true => raw.to_f64(),
         false => scaling.apply(raw.to_f64()),
     };
+    let diagonal = (0..3).all(|r| (0..3).all(|c| r == c || cof[r][c] == 0.0));
     let mut areas = vec![0.0; s.ribbons.len()];
+    let mut pts = [[0.0f64; 3]; 12];
     for cube in &s.cubes {
         let case = &table[cube.case as usize];
         let (i, j) = (cube.i as usize, cube.j as usize);
@@ -384,16 +386,17 @@ fn areas_typed<T: Sample>(
             }
             _ => values.corners(cube.i, cube.j),
         };
-        let mut pts = [[0.0f64; 3]; 12];
-        let mut have = 0u16;
+        // The crossing points first, each once (testing each triangle's corners for one
+        // already made mispredicted branches). Triangles use crossed edges only: the other
+        // entries of `pts` are left from earlier cubes (zeroing them was 3% of the pass).
+        let mut crossed = CROSSED_EDGES[cube.case as usize];
+        while crossed != 0 {
+            let e = crossed.trailing_zeros() as u8;
+            crossed &= crossed - 1;
+            pts[e as usize] = edge_point(&v, e, iso);
+        }
         for n in 0..case.n_triangles as usize {
             let t = case.triangles[n];
-            for e in t {
-                if have & (1 << e) == 0 {
-                    pts[e as usize] = edge_point(&v, e, iso);
-                    have |= 1 << e;
-                }
-            }
             let (p0, p1, p2) = (pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize]);
             let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
             let w = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
@@ -402,11 +405,11 @@ fn areas_typed<T: Sample>(
                 u[2] * w[0] - u[0] * w[2],
                 u[0] * w[1] - u[1] * w[0],
             ];
-            let d = [
-                cof[0][0] * c[0] + cof[0][1] * c[1] + cof[0][2] * c[2],
-                cof[1][0] * c[0] + cof[1][1] * c[1] + cof[1][2] * c[2],
-                cof[2][0] * c[0] + cof[2][1] * c[1] + cof[2][2] * c[2],
-            ];
+            // World-space cross product; an axis-aligned affine (most scans) needs 3 products.
+            let d = match diagonal {
+                true => [cof[0][0] * c[0], cof[1][1] * c[1], cof[2][2] * c[2]],
+                false => cof.map(|row| row[0] * c[0] + row[1] * c[1] + row[2] * c[2]),
+            };
             let a = 0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let piece = cube.first_piece + case.triangle_piece[n] as u32;
             areas[s.piece_ribbon[piece as usize] as usize] += a;
