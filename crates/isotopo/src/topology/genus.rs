@@ -418,8 +418,12 @@ fn areas_typed<T: Sample>(
     areas
 }
 
-/// Slices per parallel batch: enough work per thread, little memory.
-const BATCH: usize = 16;
+/// Slices per parallel batch: one per thread at least, and otherwise few, so that their samples
+/// are still in the cache when the areas read them (4 planes of a 512² int16 scan are 2 MiB;
+/// with 16 on 2 threads the bunny's pass took 6-11% longer and 38 MB instead of 17).
+fn batch_len() -> i32 {
+    rayon::current_num_threads().clamp(4, 64) as i32
+}
 
 /// Where meshers may disagree on a volume: the critical configurations of its inside/outside
 /// pattern, the samples exactly at the isovalue, and the solid under the other connectivity.
@@ -561,7 +565,7 @@ pub fn genus(
     };
     crate::volume::reserve_slices(
         &info,
-        2 * BATCH + 1,
+        2 * batch_len() as usize + 1,
         "the genus pass reads them in batches, one ahead",
     )?;
     progress.start("genus", nz as u64 + 1);
@@ -571,7 +575,7 @@ pub fn genus(
     let mut lower_values: Option<Samples> = None;
     let (mut cur, mut next) = (Batch::default(), Batch::default());
     let mut z0: i32 = -1;
-    let mut z1 = (z0 + BATCH as i32).min(nz as i32);
+    let mut z1 = (z0 + batch_len()).min(nz as i32);
     cur.read(reader, &classifier, z0, z1)?;
     while z0 < nz as i32 {
         let built: Vec<BuiltSlice> = (0..(z1 - z0) as usize)
@@ -601,7 +605,7 @@ pub fn genus(
                 (s, areas, survey)
             })
             .collect();
-        let z2 = (z1 + BATCH as i32).min(nz as i32);
+        let z2 = (z1 + batch_len()).min(nz as i32);
         let (tracked, read) = rayon::join(
             || tracking.add(built, conn, progress),
             || match z1 < nz as i32 {
