@@ -64,17 +64,22 @@ impl UnionFind {
 
     /// Labels `0..k` for the sets, in order of each set's first element; returns (labels, k).
     pub fn labels(&mut self) -> (Vec<u32>, usize) {
-        let n = self.parent.len();
-        let mut label = vec![u32::MAX; n];
-        let mut out = vec![0u32; n];
+        self.labels_of(0..self.parent.len() as u32)
+    }
+
+    /// Labels `0..k` for the sets of the given elements, in order of each set's first element
+    /// among them: the label of each element, in their order, and k.
+    pub fn labels_of(&mut self, elements: impl Iterator<Item = u32>) -> (Vec<u32>, usize) {
+        let mut label = vec![u32::MAX; self.parent.len()];
+        let mut out = Vec::with_capacity(elements.size_hint().0);
         let mut k = 0u32;
-        for i in 0..n as u32 {
+        for i in elements {
             let r = self.find(i) as usize;
             if label[r] == u32::MAX {
                 label[r] = k;
                 k += 1;
             }
-            out[i as usize] = label[r];
+            out.push(label[r]);
         }
         (out, k as usize)
     }

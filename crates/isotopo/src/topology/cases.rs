@@ -249,6 +249,8 @@ pub struct Case {
     pub face_segment: [[(u8, u8); 2]; 6],
     /// For each cube edge: the piece whose boundary passes through its crossing point, or [`NONE`].
     pub edge_owner: [u8; 12],
+    /// Bit `e` set when edge `e` is crossed (has an owner in `edge_owner`).
+    pub crossed_edges: u16,
 }
 
 /// Union-find over 8 corners, for grouping.
@@ -329,6 +331,9 @@ fn derive_case(case: u8, conn: Connectivity) -> Case {
         out.pieces.push(piece);
     }
     out.n_pieces = out.pieces.len() as u8;
+    out.crossed_edges = (0..12)
+        .filter(|&e| out.edge_owner[e] != NONE)
+        .fold(0, |m, e| m | 1 << e);
     out
 }
 

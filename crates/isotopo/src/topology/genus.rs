@@ -11,7 +11,7 @@ use super::cases::{cases, Connectivity};
 use super::critical::CriticalCounts;
 use super::mask::{Classifier, Inside, PlaneMask};
 use super::slice::SliceSurfels;
-use super::values::{edge_point, SliceValues, CROSSED_EDGES};
+use super::values::{edge_point, SliceValues};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::unionfind::UnionFind;
@@ -389,7 +389,7 @@ fn areas_typed<T: Sample>(
         // The crossing points first, each once (testing each triangle's corners for one
         // already made mispredicted branches). Triangles use crossed edges only: the other
         // entries of `pts` are left from earlier cubes (zeroing them was 3% of the pass).
-        let mut crossed = CROSSED_EDGES[cube.case as usize];
+        let mut crossed = case.crossed_edges;
         while crossed != 0 {
             let e = crossed.trailing_zeros() as u8;
             crossed &= crossed - 1;
@@ -563,9 +563,10 @@ pub fn genus(
             ..Agreement::default()
         },
     };
+    let batch = batch_len();
     crate::volume::reserve_slices(
         &info,
-        2 * batch_len() as usize + 1,
+        2 * batch as usize + 1,
         "the genus pass reads them in batches, one ahead",
     )?;
     progress.start("genus", nz as u64 + 1);
@@ -575,7 +576,7 @@ pub fn genus(
     let mut lower_values: Option<Samples> = None;
     let (mut cur, mut next) = (Batch::default(), Batch::default());
     let mut z0: i32 = -1;
-    let mut z1 = (z0 + batch_len()).min(nz as i32);
+    let mut z1 = (z0 + batch).min(nz as i32);
     cur.read(reader, &classifier, z0, z1)?;
     while z0 < nz as i32 {
         let built: Vec<BuiltSlice> = (0..(z1 - z0) as usize)
@@ -605,7 +606,7 @@ pub fn genus(
                 (s, areas, survey)
             })
             .collect();
-        let z2 = (z1 + batch_len()).min(nz as i32);
+        let z2 = (z1 + batch).min(nz as i32);
         let (tracked, read) = rayon::join(
             || tracking.add(built, conn, progress),
             || match z1 < nz as i32 {

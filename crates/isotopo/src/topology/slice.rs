@@ -262,21 +262,13 @@ impl SliceSurfels {
             let cb = &table[o.cubes[b].case as usize];
             join_face(&mut uf, ca, node[a], f.fa, cb, node[b], f.fb);
         }
-        // Ribbons labelled in order of their first piece, as `UnionFind::labels` labels them.
-        let mut label = vec![u32::MAX; uf.len()];
-        let mut n = 0u32;
-        o.piece_ribbon = Vec::with_capacity(pieces as usize);
-        for (q, cube) in o.cubes.iter().enumerate() {
-            for k in 0..table[cube.case as usize].n_pieces as u32 {
-                let root = uf.find(node[q] + k) as usize;
-                if label[root] == u32::MAX {
-                    label[root] = n;
-                    n += 1;
-                }
-                o.piece_ribbon.push(label[root]);
-            }
-        }
-        o.sum_ribbons(table, n as usize);
+        // Ribbons labelled in order of their first piece, as a fresh build labels them.
+        let nodes = o.cubes.iter().zip(&node).flat_map(|(cube, &first)| {
+            (0..table[cube.case as usize].n_pieces as u32).map(move |k| first + k)
+        });
+        let (labels, n) = uf.labels_of(nodes);
+        o.piece_ribbon = labels;
+        o.sum_ribbons(table, n);
         o
     }
 

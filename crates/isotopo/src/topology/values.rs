@@ -67,23 +67,3 @@ pub fn edge_point(values: &[f64; 8], e: u8, iso: f64) -> [f64; 3] {
         pa[2] + t * (pb[2] - pa[2]),
     ]
 }
-
-/// For each cube case: bit `e` set when edge `e` is crossed (its corners on either side).
-pub const CROSSED_EDGES: [u16; 256] = crossed_edges();
-
-const fn crossed_edges() -> [u16; 256] {
-    let mut out = [0u16; 256];
-    let mut case = 0;
-    while case < 256 {
-        let mut e = 0;
-        while e < 12 {
-            let (a, b) = EDGE_CORNERS[e];
-            if (case >> a) & 1 != (case >> b) & 1 {
-                out[case] |= 1 << e;
-            }
-            e += 1;
-        }
-        case += 1;
-    }
-    out
-}
