@@ -362,7 +362,11 @@ fn areas_typed<T: Sample>(
         false => scaling.apply(raw.to_f64()),
     };
     let diagonal = (0..3).all(|r| (0..3).all(|c| r == c || cof[r][c] == 0.0));
-    let mut areas = vec![0.0; s.ribbons.len()];
+    // The running sum of one ribbon's triangles stays in a register until the next triangle is
+    // another ribbon's (adding each to memory made a chain of loads waiting on stores). The
+    // last entry holds the sum before the first triangle.
+    let mut areas = vec![0.0; s.ribbons.len() + 1];
+    let (mut ribbon, mut sum) = (s.ribbons.len(), 0.0);
     let mut pts = [[0.0f64; 3]; 12];
     for cube in &s.cubes {
         let case = &table[cube.case as usize];
@@ -412,9 +416,16 @@ fn areas_typed<T: Sample>(
             };
             let a = 0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let piece = cube.first_piece + case.triangle_piece[n] as u32;
-            areas[s.piece_ribbon[piece as usize] as usize] += a;
+            let r = s.piece_ribbon[piece as usize] as usize;
+            if r != ribbon {
+                areas[ribbon] = sum;
+                (ribbon, sum) = (r, areas[r]);
+            }
+            sum += a;
         }
     }
+    areas[ribbon] = sum;
+    areas.pop();
     areas
 }
 
