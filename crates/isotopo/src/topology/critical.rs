@@ -195,6 +195,10 @@ pub fn count_critical(lower: &PlaneMask, upper: &PlaneMask) -> CriticalCounts {
                     next(r, w)
                 }
             });
+            // Most words of a scan lie wholly inside or outside: nothing there is critical.
+            if c.iter().all(|&x| x == c[0]) {
+                continue;
+            }
             let same = |a: usize, b: usize| !(c[a] ^ c[b]);
             for [a, d, b, e] in FACES.map(|(_, f)| f.map(usize::from)) {
                 let diagonal = same(a, d) & same(b, e) & (c[a] ^ c[b]);
