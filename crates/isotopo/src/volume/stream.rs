@@ -46,7 +46,6 @@ pub(crate) struct StreamReader {
     loc: DataLocation,
     input: Option<Box<dyn Read + Send>>,
     position: usize,
-    bytes: Vec<u8>,
 }
 
 fn data_bytes(info: &VolumeInfo) -> u64 {
@@ -119,7 +118,6 @@ impl StreamReader {
             loc,
             input: None,
             position: 0,
-            bytes: Vec::new(),
         };
         r.rewind()?;
         Ok(r)
@@ -216,16 +214,13 @@ impl SliceReader for StreamReader {
                 self.info.path.display()
             )));
         }
-        let n = self.info.slice_len() * self.info.dtype.size();
-        self.bytes.resize(n, 0);
-        let input = self.input.as_mut().expect("stream open");
-        if let Err(e) = input.read_exact(&mut self.bytes) {
-            return Err(self.read_error(e));
-        }
         if out.dtype() != self.info.dtype {
             *out = Samples::new(self.info.dtype);
         }
-        out.decode(&self.bytes, self.loc.endian);
+        let input = self.input.as_mut().expect("stream open");
+        if let Err(e) = out.read_from(self.info.slice_len(), self.loc.endian, input) {
+            return Err(self.read_error(e));
+        }
         self.position += 1;
         if self.position == self.info.nz() {
             self.read_to_end()?;
