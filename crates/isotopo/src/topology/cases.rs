@@ -223,15 +223,19 @@ pub struct Piece {
 pub const MAX_TRIANGLES: usize = 6;
 
 /// A cube case under one connectivity.
+///
+/// Laid out for the per-cube loops, which read a case of most cubes of every slice: the fields
+/// they read come first, in the first 64 bytes (one cache line; the areas read `n_triangles` to
+/// `triangle_piece`, the ribbons' sums `n_pieces` to `z_upper` and `face_owner`).
 #[derive(Clone, Debug, Default)]
+#[repr(C, align(64))]
 pub struct Case {
-    /// The surface pieces in the cube, in order of their lowest corner.
-    pub pieces: Vec<Piece>,
-    // Compact copies of what the per-cube loops read, so the hot table fits in cache:
     /// Number of pieces.
     pub n_pieces: u8,
     /// Number of triangles of all pieces together: `triangles[..n_triangles]` are used.
     pub n_triangles: u8,
+    /// Bit `e` set when edge `e` is crossed (has an owner in `edge_owner`).
+    pub crossed_edges: u16,
     /// All triangles of all pieces, piece by piece, as cube edges (outward-facing).
     pub triangles: [[u8; 3]; MAX_TRIANGLES],
     /// Piece (index into `pieces`) of each triangle.
@@ -249,8 +253,8 @@ pub struct Case {
     pub face_segment: [[(u8, u8); 2]; 6],
     /// For each cube edge: the piece whose boundary passes through its crossing point, or [`NONE`].
     pub edge_owner: [u8; 12],
-    /// Bit `e` set when edge `e` is crossed (has an owner in `edge_owner`).
-    pub crossed_edges: u16,
+    /// The surface pieces in the cube, in order of their lowest corner.
+    pub pieces: Vec<Piece>,
 }
 
 /// Union-find over 8 corners, for grouping.
