@@ -226,7 +226,7 @@ pub const MAX_TRIANGLES: usize = 6;
 ///
 /// Laid out for the per-cube loops, which read a case of most cubes of every slice: the fields
 /// they read come first, in the first 64 bytes (one cache line; the areas read `n_triangles` to
-/// `triangle_piece`, the ribbons' sums `n_pieces` to `z_upper` and `face_owner`).
+/// `triangle_piece`, the ribbons' sums `n_pieces` to `top_segments`).
 #[derive(Clone, Debug, Default)]
 #[repr(C, align(64))]
 pub struct Case {
@@ -246,6 +246,10 @@ pub struct Case {
     pub ribbon_chi4: [i8; 4],
     /// Per piece: the upper corner of the first z-edge its boundary crosses, or [`NONE`].
     pub z_upper: [u8; 4],
+    /// Per piece: its boundary segments on the lower face (face 4; the plane below).
+    pub bottom_segments: [u8; 4],
+    /// Per piece: its boundary segments on the upper face (face 5; the plane above).
+    pub top_segments: [u8; 4],
     /// For each face and segment slot (canonical order): the owning piece, or [`NONE`].
     pub face_owner: [[u8; 2]; 6],
     /// For each face and slot: the segment's end points as cube edges, in the owning piece's
@@ -492,15 +496,20 @@ fn chain_loops(mine: &[&Segment]) -> Vec<Vec<u8>> {
 /// loops read (the piece itself is pushed by the caller).
 fn record_piece(out: &mut Case, case: u8, piece: &Piece, mine: &[&Segment]) {
     let piece_index = out.pieces.len() as u8;
+    let k = piece_index as usize;
     for s in mine {
         out.face_owner[s.face][s.slot] = piece_index;
         out.face_segment[s.face][s.slot] = (s.from, s.to);
+        match s.face {
+            4 => out.bottom_segments[k] += 1,
+            5 => out.top_segments[k] += 1,
+            _ => {}
+        }
     }
     let points = || piece.loops.iter().flatten();
     for &e in points() {
         out.edge_owner[e as usize] = piece_index;
     }
-    let k = piece_index as usize;
     out.chi4[k] = piece.chi4;
     out.ribbon_chi4[k] = piece.ribbon_chi4;
     out.z_upper[k] = points()
@@ -802,6 +811,38 @@ mod tests {
                     // Disk: chi 1; tube: chi 0. Sum of shares: chi - segments/2 + points/4.
                     let segs: usize = p.loops.iter().map(Vec::len).sum();
                     assert_eq!(p.chi4 as i32, 8 - 4 * p.loops.len() as i32 - segs as i32);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn each_pieces_z_face_segments_are_those_of_its_loops() {
+        // A piece's segment on a face joins two consecutive points of one of its loops, both
+        // on that face's edges (read from the loops, not from the face owners the counts
+        // were made from).
+        let on_face = |p: &Piece, face: usize| -> u8 {
+            let edges = &FACE_EDGES[face];
+            let pairs = p
+                .loops
+                .iter()
+                .flat_map(|lp| (0..lp.len()).map(move |i| (lp[i], lp[(i + 1) % lp.len()])));
+            pairs
+                .filter(|(a, b)| edges.contains(a) && edges.contains(b))
+                .count() as u8
+        };
+        for conn in BOTH {
+            for case in 0..=255u8 {
+                let c = &cases(conn)[case as usize];
+                for (k, p) in c.pieces.iter().enumerate() {
+                    let why = format!("case {case:#010b} conn {} piece {k}", conn.number());
+                    assert_eq!(c.bottom_segments[k], on_face(p, 4), "{why}");
+                    assert_eq!(c.top_segments[k], on_face(p, 5), "{why}");
+                    assert_eq!(
+                        c.bottom_segments[k] + c.top_segments[k],
+                        p.z_face_segments,
+                        "{why}"
+                    );
                 }
             }
         }

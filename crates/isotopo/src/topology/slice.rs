@@ -62,6 +62,8 @@ impl Ribbon {
         if self.first_cube == u32::MAX {
             self.first_cube = q;
         }
+        self.bottom_segments += case.bottom_segments[k] as u32;
+        self.top_segments += case.top_segments[k] as u32;
         if self.upper_inside.is_none() && case.z_upper[k] != NONE {
             self.upper_inside = Some((cube.case >> case.z_upper[k]) & 1 == 1);
         }
@@ -390,20 +392,6 @@ impl SliceSurfels {
                 let r =
                     &mut self.ribbons[self.piece_ribbon[cube.first_piece as usize + k] as usize];
                 r.add_piece(case, k, cube, q as u32);
-            }
-            for slot in 0..2 {
-                let o = case.face_owner[4][slot];
-                if o != NONE {
-                    self.ribbons
-                        [self.piece_ribbon[(cube.first_piece + o as u32) as usize] as usize]
-                        .bottom_segments += 1;
-                }
-                let o = case.face_owner[5][slot];
-                if o != NONE {
-                    self.ribbons
-                        [self.piece_ribbon[(cube.first_piece + o as u32) as usize] as usize]
-                        .top_segments += 1;
-                }
             }
         }
     }
