@@ -470,6 +470,8 @@ struct SliceSurvey {
 struct Batch {
     planes: Vec<PlaneMask>,
     values: Vec<Option<Samples>>,
+    /// Samples of each plane exactly at the isovalue (counted while they are in the cache).
+    at_iso: Vec<u64>,
 }
 
 impl Batch {
@@ -488,6 +490,7 @@ impl Batch {
         self.values.truncate(n);
         self.planes.resize_with(n, || PlaneMask::empty(nx, ny));
         self.values.resize_with(n, || None);
+        self.at_iso.resize(n, 0);
         for (k, p) in (z0 + 1..=z1).enumerate() {
             if p < nz as i32 {
                 let s = self.values[k].get_or_insert_with(|| Samples::new(dtype));
@@ -500,9 +503,12 @@ impl Batch {
         self.planes
             .par_iter_mut()
             .zip(self.values.par_iter())
-            .for_each(|(plane, v)| {
+            .zip(self.at_iso.par_iter_mut())
+            .for_each(|((plane, v), at_iso)| {
+                *at_iso = 0;
                 if let Some(v) = v {
                     plane.fill(v, classifier);
+                    *at_iso = classifier.count_on_iso(v);
                 }
             });
         Ok(())
@@ -612,7 +618,7 @@ pub fn genus(
                 let survey = SliceSurvey {
                     other,
                     critical: super::critical::count_critical(lo, up),
-                    at_iso: up_v.map_or(0, |v| classifier.count_on_iso(v)),
+                    at_iso: cur.at_iso[k],
                 };
                 (s, areas, survey)
             })
