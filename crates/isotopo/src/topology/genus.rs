@@ -527,6 +527,8 @@ struct GenusTracking {
     prev: Option<(SliceSurfels, u32)>,
     prev_other: Option<(Option<SliceSurfels>, u32)>,
     agreement: Agreement,
+    /// Slices no longer needed, whose buffers the next batch builds in.
+    spare: Vec<SliceSurfels>,
 }
 
 impl GenusTracking {
@@ -545,7 +547,9 @@ impl GenusTracking {
             };
             let o = survey.other.as_ref().unwrap_or(&s);
             let base_other = self.other.add_slice(o, &[], prev_other, conn.other())?;
-            self.prev = Some((s, base));
+            if let Some((old, _)) = self.prev.replace((s, base)) {
+                self.spare.push(old);
+            }
             self.prev_other = Some((survey.other, base_other));
             self.agreement.critical.add(survey.critical);
             self.agreement.samples_at_iso += survey.at_iso;
@@ -579,6 +583,7 @@ pub fn genus(
             other_connectivity: conn.other().number(),
             ..Agreement::default()
         },
+        spare: Vec::new(),
     };
     let batch = batch_len();
     crate::volume::reserve_slices(
@@ -596,9 +601,14 @@ pub fn genus(
     let mut z1 = (z0 + batch).min(nz as i32);
     cur.read(reader, &classifier, z0, z1)?;
     while z0 < nz as i32 {
-        let built: Vec<BuiltSlice> = (0..(z1 - z0) as usize)
+        let n = (z1 - z0) as usize;
+        let spare: Vec<SliceSurfels> = (0..n)
+            .map(|_| tracking.spare.pop().unwrap_or_default())
+            .collect();
+        let built: Vec<BuiltSlice> = spare
             .into_par_iter()
-            .map(|k| {
+            .enumerate()
+            .map(|(k, spare)| {
                 let (lo, lo_v) = if k == 0 {
                     (&lower_plane, lower_values.as_ref())
                 } else {
@@ -606,7 +616,7 @@ pub fn genus(
                 };
                 let (up, up_v) = (&cur.planes[k], cur.values[k].as_ref());
                 let z = z0 + k as i32;
-                let (s, other) = SliceSurfels::build_both(lo, up, z, conn);
+                let (s, other) = SliceSurfels::build_both_in(spare, lo, up, z, conn);
                 let sv = SliceValues {
                     lower: lo_v,
                     upper: up_v,

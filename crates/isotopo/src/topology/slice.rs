@@ -194,13 +194,20 @@ impl SliceSurfels {
         z: i32,
         conn: Connectivity,
     ) -> (SliceSurfels, Option<SliceSurfels>) {
+        Self::build_both_in(SliceSurfels::default(), lower, upper, z, conn)
+    }
+
+    /// As [`SliceSurfels::build_both`], in the buffers of `spare`, a slice no longer needed
+    /// (fresh ones cost the allocator and a page fault every 4 KiB as they grow).
+    pub fn build_both_in(
+        mut s: SliceSurfels,
+        lower: &PlaneMask,
+        upper: &PlaneMask,
+        z: i32,
+        conn: Connectivity,
+    ) -> (SliceSurfels, Option<SliceSurfels>) {
         let table = cases(conn);
-        let mut s = SliceSurfels {
-            z,
-            nx: lower.nx,
-            ny: lower.ny,
-            ..Default::default()
-        };
+        (s.z, s.nx, s.ny) = (z, lower.nx, lower.ny);
         let pieces = s.list_mixed_cubes(lower, upper, table);
         let mut uf = UnionFind::new(pieces as usize);
         let mut deferred = Vec::new();
