@@ -234,8 +234,12 @@ pub struct Case {
     pub n_pieces: u8,
     /// Number of triangles of all pieces together: `triangles[..n_triangles]` are used.
     pub n_triangles: u8,
-    /// Bit `e` set when edge `e` is crossed (has an owner in `edge_owner`).
-    pub crossed_edges: u16,
+    /// The crossed edges (those with an owner in `edge_owner`) past the first four: bit `e`
+    /// for edge `e`.
+    pub crossed_after_first: u16,
+    /// The first four crossed edges, by number; where fewer are crossed, the first again (so
+    /// that a cube's first four crossing points are made without a branch).
+    pub first_crossed: [u8; 4],
     /// All triangles of all pieces, piece by piece, as cube edges (outward-facing).
     pub triangles: [[u8; 3]; MAX_TRIANGLES],
     /// Piece (index into `pieces`) of each triangle.
@@ -339,9 +343,13 @@ fn derive_case(case: u8, conn: Connectivity) -> Case {
         out.pieces.push(piece);
     }
     out.n_pieces = out.pieces.len() as u8;
-    out.crossed_edges = (0..12)
-        .filter(|&e| out.edge_owner[e] != NONE)
-        .fold(0, |m, e| m | 1 << e);
+    let crossed: Vec<u8> = (0..12)
+        .filter(|&e| out.edge_owner[e as usize] != NONE)
+        .collect();
+    for k in 0..4 {
+        out.first_crossed[k] = crossed.get(k).or(crossed.first()).copied().unwrap_or(0);
+    }
+    out.crossed_after_first = crossed.iter().skip(4).fold(0, |m, &e| m | 1 << e);
     out
 }
 
@@ -812,6 +820,36 @@ mod tests {
                     let segs: usize = p.loops.iter().map(Vec::len).sum();
                     assert_eq!(p.chi4 as i32, 8 - 4 * p.loops.len() as i32 - segs as i32);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_crossed_edges_are_those_whose_corners_differ() {
+        for conn in BOTH {
+            for case in 0..=255u8 {
+                let c = &cases(conn)[case as usize];
+                let inside = |corner: u8| (case >> corner) & 1;
+                let expected: Vec<u8> = (0..12u8)
+                    .filter(|&e| {
+                        let (a, b) = EDGE_CORNERS[e as usize];
+                        inside(a) != inside(b)
+                    })
+                    .collect();
+                let mut listed: Vec<u8> = c.first_crossed.to_vec();
+                listed.extend((0..12u8).filter(|&e| c.crossed_after_first >> e & 1 == 1));
+                listed.sort_unstable();
+                listed.dedup();
+                let why = format!("case {case:#010b} conn {}", conn.number());
+                match expected.is_empty() {
+                    true => assert_eq!(c.crossed_after_first, 0, "{why}"),
+                    false => assert_eq!(listed, expected, "{why}"),
+                }
+                // The first four in order, repeating the first where fewer are crossed.
+                let first: Vec<u8> = (0..4)
+                    .map(|k| *expected.get(k).or(expected.first()).unwrap_or(&0))
+                    .collect();
+                assert_eq!(c.first_crossed.to_vec(), first, "{why}");
             }
         }
     }

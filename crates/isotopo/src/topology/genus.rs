@@ -393,7 +393,11 @@ fn areas_typed<T: Sample>(
         // The crossing points first, each once (testing each triangle's corners for one
         // already made mispredicted branches). Triangles use crossed edges only: the other
         // entries of `pts` are left from earlier cubes (zeroing them was 3% of the pass).
-        let mut crossed = case.crossed_edges;
+        // The first four without a branch (most cubes have three or four), then the rest.
+        for e in case.first_crossed {
+            pts[e as usize] = edge_point(&v, e, iso);
+        }
+        let mut crossed = case.crossed_after_first;
         while crossed != 0 {
             let e = crossed.trailing_zeros() as u8;
             crossed &= crossed - 1;
