@@ -480,6 +480,10 @@ struct Batch {
 
 impl Batch {
     /// Reads planes `z0 + 1 ..= z1` into this batch's buffers and classifies them.
+    ///
+    /// Each plane is classified (by either thread) while the next is read: the thread that
+    /// joins the last batch to the surfaces beside the reading classifies too once it is done
+    /// (the join takes half as long as the reading).
     fn read(
         &mut self,
         reader: &mut dyn SliceReader,
@@ -495,27 +499,26 @@ impl Batch {
         self.planes.resize_with(n, || PlaneMask::empty(nx, ny));
         self.values.resize_with(n, || None);
         self.at_iso.resize(n, 0);
-        for (k, p) in (z0 + 1..=z1).enumerate() {
-            if p < nz as i32 {
-                let s = self.values[k].get_or_insert_with(|| Samples::new(dtype));
-                reader.read_slice(s)?;
-            } else {
-                self.values[k] = None;
-                self.planes[k].bits.fill(0);
-            }
-        }
-        self.planes
-            .par_iter_mut()
-            .zip(self.values.par_iter())
-            .zip(self.at_iso.par_iter_mut())
-            .for_each(|((plane, v), at_iso)| {
+        let planes = self.planes.iter_mut().zip(&mut self.values);
+        let planes = planes.zip((z0 + 1..=z1).zip(&mut self.at_iso));
+        rayon::scope(|scope| {
+            for ((plane, values), (p, at_iso)) in planes {
                 *at_iso = 0;
-                if let Some(v) = v {
+                if p >= nz as i32 {
+                    *values = None;
+                    plane.bits.fill(0);
+                    continue;
+                }
+                let v = values.get_or_insert_with(|| Samples::new(dtype));
+                reader.read_slice(v)?;
+                let v = &*v;
+                scope.spawn(move |_| {
                     plane.fill(v, classifier);
                     *at_iso = classifier.count_on_iso(v);
-                }
-            });
-        Ok(())
+                });
+            }
+            Ok(())
+        })
     }
 }
 
