@@ -867,6 +867,8 @@ fn single_sample_walls_close_what_fans_cannot() {
 ///   z = 9..11   small ring in x-z, 3 deep in y      #.#  (# material, . the hole)
 ///   z = 3, 4    two C's, radii 2.5 to 8.5, open on opposite sides
 /// ```
+///
+/// At a tau that closes both, the second pass meets neither: the count is still one.
 #[test]
 fn intra_ribbon_handles_are_counted_once() {
     let dims = [26, 26, 16];
@@ -906,6 +908,12 @@ fn intra_ribbon_handles_are_counted_once() {
     let out = simplify(&mut m, &opts, &Affine::IDENTITY, &NoProgress).unwrap();
     assert_eq!((out.removed.len(), out.kept.len()), (1, 1));
     assert!(out.passes >= 2, "{} passes", out.passes);
+    assert_eq!(out.intra_ribbon, 1);
+    // Both closed in the first pass: the second finds neither, and the count stays.
+    let mut m = common::masks(&vol, 0.0, conn, Axis::Z);
+    let all = options(1000.0, Mode::Both, conn);
+    let out = simplify(&mut m, &all, &Affine::IDENTITY, &NoProgress).unwrap();
+    assert_eq!((out.removed.len(), out.kept.len()), (2, 0));
     assert_eq!(out.intra_ribbon, 1);
     // The ring alone: its Reeb cycle is not counted as intra-ribbon.
     let mut m = common::masks(&shape(false), 0.0, conn, Axis::Z);
