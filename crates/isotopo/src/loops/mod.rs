@@ -2691,6 +2691,42 @@ mod tests {
         );
     }
 
+    /// A torus lying within one slice (two C's in consecutive planes, open on opposite sides:
+    /// the paper's figure 7) is a ribbon of genus 1: with its boundary contours capped, two
+    /// generators. The C's faces in the slices below and above are disks: none.
+    ///
+    /// ```text
+    ///   plane 4   C open towards -x      together: a ring whose two halves
+    ///   plane 3   C open towards +x      overlap where the C's do
+    /// ```
+    #[test]
+    fn a_torus_within_one_slice_gives_its_ribbon_two_generators() {
+        let conn = Connectivity::Six;
+        let mut vol = MaskVolume::new([26, 26, 8], Frame::identity());
+        for (x, y, z) in (0..26).flat_map(|x| (0..26).flat_map(move |y| [(x, y, 3), (x, y, 4)])) {
+            let (dx, dy) = (x as f64 - 12.6, y as f64 - 12.4);
+            let (r, a) = (dx.hypot(dy), dy.atan2(dx).to_degrees());
+            let opening = if z == 3 {
+                a.abs() < 35.0
+            } else {
+                a.abs() > 145.0
+            };
+            vol.set(x, y, z, (2.5..8.5).contains(&r) && !opening);
+        }
+        let mut g = Graph::new(&vol, cases(conn));
+        let mut cache = SliceCache::new(conn);
+        let mut counts = Vec::new();
+        for s in 0..7 {
+            cache.ensure(&vol, s);
+            let n = cache.slices.get(&s).map_or(0, |(sl, _)| sl.ribbons.len());
+            for r in 0..n as u32 {
+                let gens = ribbon_generators(&mut g, &mut cache, s, r).unwrap_or_default();
+                counts.push((s, gens.len()));
+            }
+        }
+        assert_eq!(counts, [(2, 0), (3, 2), (4, 0)]);
+    }
+
     /// The generators of the part of a ribbon in a box lie in the box: on a sponge, for every
     /// ribbon of a slice with generators, the box round its first generator (two cubes wider)
     /// gives generators again, every vertex of them within it.
