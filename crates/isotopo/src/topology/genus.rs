@@ -567,6 +567,47 @@ impl GenusTracking {
     }
 }
 
+/// Builds the slices of a batch in parallel: slice `z0 + k` lies between plane `z0 + k` (the
+/// batch's plane `k - 1`, or `lower` for k = 0) and the batch's plane `k`; their surfels are
+/// built in the buffers of `spare`, one slice each.
+fn build_batch(
+    batch: &Batch,
+    lower: (&PlaneMask, Option<&Samples>),
+    z0: i32,
+    spare: Vec<SliceSurfels>,
+    info: &VolumeInfo,
+    opts: &SurfaceOptions,
+) -> Vec<BuiltSlice> {
+    let [nx, ny, _] = info.dims;
+    let conn = opts.connectivity;
+    spare
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, spare)| {
+            let (lo, lo_v) = match k {
+                0 => lower,
+                _ => (&batch.planes[k - 1], batch.values[k - 1].as_ref()),
+            };
+            let (up, up_v) = (&batch.planes[k], batch.values[k].as_ref());
+            let (s, other) = SliceSurfels::build_both_in(spare, lo, up, z0 + k as i32, conn);
+            let sv = SliceValues {
+                lower: lo_v,
+                upper: up_v,
+                nx,
+                ny,
+                scaling: info.scaling,
+            };
+            let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
+            let survey = SliceSurvey {
+                other,
+                critical: super::critical::count_critical(lo, up),
+                at_iso: batch.at_iso[k],
+            };
+            (s, areas, survey)
+        })
+        .collect()
+}
+
 /// Runs the genus pass over a volume, streaming its slices; also surveys where meshers may
 /// disagree ([`Agreement`]).
 ///
@@ -612,34 +653,8 @@ pub fn genus(
         let spare: Vec<SliceSurfels> = (0..n)
             .map(|_| tracking.spare.pop().unwrap_or_default())
             .collect();
-        let built: Vec<BuiltSlice> = spare
-            .into_par_iter()
-            .enumerate()
-            .map(|(k, spare)| {
-                let (lo, lo_v) = if k == 0 {
-                    (&lower_plane, lower_values.as_ref())
-                } else {
-                    (&cur.planes[k - 1], cur.values[k - 1].as_ref())
-                };
-                let (up, up_v) = (&cur.planes[k], cur.values[k].as_ref());
-                let z = z0 + k as i32;
-                let (s, other) = SliceSurfels::build_both_in(spare, lo, up, z, conn);
-                let sv = SliceValues {
-                    lower: lo_v,
-                    upper: up_v,
-                    nx,
-                    ny,
-                    scaling: info.scaling,
-                };
-                let areas = ribbon_areas(&s, &sv, opts.iso, &info.affine, conn);
-                let survey = SliceSurvey {
-                    other,
-                    critical: super::critical::count_critical(lo, up),
-                    at_iso: cur.at_iso[k],
-                };
-                (s, areas, survey)
-            })
-            .collect();
+        let lower = (&lower_plane, lower_values.as_ref());
+        let built = build_batch(&cur, lower, z0, spare, &info, opts);
         let z2 = (z1 + batch).min(nz as i32);
         let (tracked, read) = rayon::join(
             || tracking.add(built, conn, progress),
