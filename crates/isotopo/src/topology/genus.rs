@@ -589,7 +589,7 @@ fn build_batch(
                 _ => (&batch.planes[k - 1], batch.values[k - 1].as_ref()),
             };
             let (up, up_v) = (&batch.planes[k], batch.values[k].as_ref());
-            let (s, other) = SliceSurfels::build_both_in(spare, lo, up, z0 + k as i32, conn);
+            let (s, other) = SliceSurfels::build_both(spare, lo, up, z0 + k as i32, conn);
             let sv = SliceValues {
                 lower: lo_v,
                 upper: up_v,

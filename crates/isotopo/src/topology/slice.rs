@@ -184,22 +184,13 @@ impl SliceSurfels {
     }
 
     /// Builds the surfels of the slice under `conn`, and under the other connectivity where
-    /// they differ (`None`: no cube of the slice is cut differently, see [`cut_alike`]).
+    /// they differ (`None`: no cube of the slice is cut differently, see [`cut_alike`]), in the
+    /// buffers of `spare`, a slice no longer needed (fresh ones cost the allocator and a page
+    /// fault every 4 KiB as they grow; `SliceSurfels::default()` for none).
     ///
     /// The other connectivity's slice is derived from this one: the side faces between cubes
     /// cut alike are joined once, for both; only those of the other cubes are joined again.
     pub fn build_both(
-        lower: &PlaneMask,
-        upper: &PlaneMask,
-        z: i32,
-        conn: Connectivity,
-    ) -> (SliceSurfels, Option<SliceSurfels>) {
-        Self::build_both_in(SliceSurfels::default(), lower, upper, z, conn)
-    }
-
-    /// As [`SliceSurfels::build_both`], in the buffers of `spare`, a slice no longer needed
-    /// (fresh ones cost the allocator and a page fault every 4 KiB as they grow).
-    pub fn build_both_in(
         mut s: SliceSurfels,
         lower: &PlaneMask,
         upper: &PlaneMask,
@@ -476,19 +467,20 @@ mod tests {
 
     /// Both slices of `build_both` are those two fresh builds make, field by field, on random
     /// planes of every density (sparse ones have no critical cube, dense noise many), both
-    /// connectivities; and the other connectivity's is `None` exactly where every cube is cut
-    /// alike.
+    /// connectivities, each built in the buffers of the round before (another size and
+    /// density); and the other connectivity's is `None` exactly where every cube is cut alike.
     #[test]
     fn both_connectivities_built_at_once_are_built_as_each_alone() {
         let mut rng = crate::test_rng::Rng(0x51ce_5eed_0dd5_1ce5);
         let (mut shared, mut derived) = (0, 0);
+        let mut spare = SliceSurfels::default();
         for round in 0..400 {
             let (nx, ny) = (1 + rng.below(70) as usize, 1 + rng.below(9) as usize);
             let density = [4, 40, 128, 200, 250][round % 5];
             let lower = random_plane(&mut rng, nx, ny, density);
             let upper = random_plane(&mut rng, nx, ny, density);
             for conn in [Connectivity::Six, Connectivity::TwentySix] {
-                let (s, other) = SliceSurfels::build_both(&lower, &upper, 3, conn);
+                let (s, other) = SliceSurfels::build_both(spare, &lower, &upper, 3, conn);
                 assert_eq!(
                     s,
                     SliceSurfels::build(&lower, &upper, 3, conn),
@@ -510,6 +502,7 @@ mod tests {
                         shared += 1;
                     }
                 }
+                spare = s;
             }
         }
         assert!(
