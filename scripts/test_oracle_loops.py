@@ -39,6 +39,7 @@ import heapq
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -367,7 +368,7 @@ def test_mesh_facts_refused():
     print("mesh facts: corrupted meshes are refused")
     f = torus_field((24, 24, 24), np.eye(4), np.array([11.3, 11.6, 11.45]), 6, 2.5, np.eye(3))
     vol = save("small_torus", f)
-    ply = ol.mesh_volume(vol, 0.0, 6)
+    ply = ol.mesh_volume(vol, 0.0, 6, out=TMP / "small_torus.ply")
     V, F = ol.read_ply(ply)
 
     def write(name, V, F):
@@ -692,7 +693,7 @@ TORUS_UP = (np.array([19.3, 19.6, 19.45]), np.eye(3))
 
 def main():
     t0 = time.perf_counter()
-    print(f"isotopo: {pick_isotopo()}; temporary files in {TMP}")
+    print(f"isotopo: {pick_isotopo()}; temporary files in {TMP} (removed if all pass)")
     got = {}
     c, rot = TORUS_UP
     aff = np.diag([1.0, 1.0, 2.0, 1.0])
@@ -720,7 +721,11 @@ def main():
         guarded(test)
     print(f"\n{time.perf_counter() - t0:.1f} s; " + (f"{len(FAILS)} FAILED:\n  " + "\n  ".join(FAILS)
                                                     if FAILS else "all passed"))
-    return 1 if FAILS else 0
+    if FAILS:
+        print(f"temporary files kept in {TMP}")
+        return 1
+    shutil.rmtree(TMP, ignore_errors=True)
+    return 0
 
 
 if __name__ == "__main__":
