@@ -766,12 +766,23 @@ pub fn shortest_odd_loop(
 /// A loop crossing `cut` an odd number of times, found cheaply (the first that the search from
 /// all of `cut` at once closes; at most half of `cut` longer than the shortest), or `None`.
 pub fn any_odd_loop(g: &mut Graph, cut: &[Vertex], region: &dyn Region) -> Option<Vec<Vertex>> {
+    any_odd_loop_below(g, cut, region, usize::MAX)
+}
+
+/// [`any_odd_loop`], searched only as deep as a loop shorter than `limit` edges needs: `None`
+/// only when no loop crossing `cut` an odd number of times is shorter (or the budget ran out).
+pub fn any_odd_loop_below(
+    g: &mut Graph,
+    cut: &[Vertex],
+    region: &dyn Region,
+    limit: usize,
+) -> Option<Vec<Vertex>> {
     if cut.len() < 2 {
         return None;
     }
     let curves = Curves::new(g, cut, &[])?;
     g.scratch.next_region();
-    let (first, _, _) = multi_source(g, &curves, cut, region, usize::MAX);
+    let (first, _, _) = multi_source(g, &curves, cut, region, limit);
     first
         .map(|(walk, _)| simple_cycle(g, &curves, walk, 1))
         .filter(|walk| walk_in_region(g, region, walk))
@@ -1578,6 +1589,37 @@ mod tests {
             }
         }
         assert!(compared > 100, "{compared} contours");
+    }
+
+    /// The bounded search for any loop crossing a curve oddly: on the torus, none when the
+    /// limit is the meridian's length less one or lower, and from just above that length a
+    /// loop that crosses the equator an odd number of times and is at most half the equator
+    /// longer than the meridian (the walk closes along the curve).
+    #[test]
+    fn any_odd_loop_below_keeps_to_its_limit() {
+        let vol = torus(24, 7.0, 2.6);
+        for conn in [Connectivity::Six, Connectivity::TwentySix] {
+            let mut g = Graph::new(&vol, cases(conn));
+            let (equator, meridian) = torus_equator_and_meridian(&mut g);
+            let m = meridian.len();
+            for limit in [0, 1, m / 2, m - 1] {
+                let found = any_odd_loop_below(&mut g, &equator, &Everywhere, limit);
+                assert!(
+                    found.is_none(),
+                    "{conn:?}: a loop below {limit}, the meridian is {m}"
+                );
+            }
+            for limit in [m + 1, m + 8, usize::MAX] {
+                let lp = any_odd_loop_below(&mut g, &equator, &Everywhere, limit)
+                    .unwrap_or_else(|| panic!("{conn:?}: no loop below {limit}"));
+                assert_eq!(crossing_parity(&mut g, &lp, &equator), Some(1), "{conn:?}");
+                assert!(
+                    lp.len() <= m + equator.len() / 2,
+                    "{conn:?}: {} edges",
+                    lp.len()
+                );
+            }
+        }
     }
 
     #[test]
