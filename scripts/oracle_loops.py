@@ -164,10 +164,9 @@ def _surface_args(iso, conn, inside):
     return ["--iso", repr(float(iso)), "--connectivity", str(conn), "--inside", inside, "-q"]
 
 
-def mesh_volume(vol, iso, conn=6, inside="above", out=None):
-    """Runs `isotopo mesh`; returns the PLY path (in a fresh temporary folder, left to the
-    caller to remove, unless `out`)."""
-    out = Path(out) if out else Path(tempfile.mkdtemp(prefix="oracle_loops_")) / "mesh.ply"
+def mesh_volume(vol, iso, out, conn=6, inside="above"):
+    """Runs `isotopo mesh` into the PLY file `out`; returns its path."""
+    out = Path(out)
     run_isotopo("mesh", vol, *_surface_args(iso, conn, inside), "-o", out)
     return out
 
@@ -909,12 +908,10 @@ class Surface:
 
 def build_surface(vol, iso, conn=6, inside="above", mesh_path=None, check_volume=True):
     data, affine = load_volume(vol)
-    if mesh_path:
-        mesh = load_mesh(mesh_path, affine, data if check_volume else None, iso, inside)
-    else:  # meshed into a folder removed once read (hundreds of runs must not fill /tmp)
-        with tempfile.TemporaryDirectory(prefix="oracle_loops_") as tmp:
-            ply = mesh_volume(vol, iso, conn, inside, Path(tmp) / "mesh.ply")
-            mesh = load_mesh(ply, affine, data if check_volume else None, iso, inside)
+    # Meshed, unless given, into a folder removed once read (hundreds of runs must not fill /tmp).
+    with tempfile.TemporaryDirectory(prefix="oracle_loops_") as tmp:
+        ply = mesh_path or mesh_volume(vol, iso, Path(tmp) / "mesh.ply", conn, inside)
+        mesh = load_mesh(ply, affine, data if check_volume else None, iso, inside)
     return Surface(mesh, surface_graph(mesh), homology(mesh))
 
 

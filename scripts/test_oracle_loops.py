@@ -368,7 +368,7 @@ def test_mesh_facts_refused():
     print("mesh facts: corrupted meshes are refused")
     f = torus_field((24, 24, 24), np.eye(4), np.array([11.3, 11.6, 11.45]), 6, 2.5, np.eye(3))
     vol = save("small_torus", f)
-    ply = ol.mesh_volume(vol, 0.0, 6, out=TMP / "small_torus.ply")
+    ply = ol.mesh_volume(vol, 0.0, TMP / "small_torus.ply")
     V, F = ol.read_ply(ply)
 
     def write(name, V, F):
