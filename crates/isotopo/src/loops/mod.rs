@@ -1860,6 +1860,29 @@ mod tests {
         assert!(rows_seen > 20, "{rows_seen}");
     }
 
+    /// The square loop of edge midpoints from lo + 0.5 to hi + 0.5 in the plane z, corners left
+    /// out.
+    fn square_loop(lo: i64, hi: i64, z: i64) -> Vec<Vertex> {
+        let mut lp = Vec::new();
+        lp.extend((lo + 1..=hi).map(|y| Vertex {
+            p: [lo, y, z],
+            axis: 0,
+        }));
+        lp.extend((lo + 1..=hi).map(|x| Vertex {
+            p: [x, hi, z],
+            axis: 1,
+        }));
+        lp.extend((lo + 1..=hi).rev().map(|y| Vertex {
+            p: [hi, y, z],
+            axis: 0,
+        }));
+        lp.extend((lo + 1..=hi).rev().map(|x| Vertex {
+            p: [x, lo, z],
+            axis: 1,
+        }));
+        lp
+    }
+
     /// Without a partner loop, the side a loop spans is read off its fan: round a bar of
     /// 3 × 3 samples, material; round a hole of the same size through a block, void; the
     /// same loop at any height of the bar and with its vertices in either order.
@@ -1883,27 +1906,6 @@ mod tests {
     /// (5..=6) where the fan's centre lies, the bar's side still wins.
     #[test]
     fn a_fan_spans_the_bar_it_goes_round_or_the_hole() {
-        // The square loop of edge midpoints from lo + 0.5 to hi + 0.5, corners left out.
-        let ring = |lo: i64, hi: i64, z: i64| -> Vec<Vertex> {
-            let mut lp = Vec::new();
-            lp.extend((lo + 1..=hi).map(|y| Vertex {
-                p: [lo, y, z],
-                axis: 0,
-            }));
-            lp.extend((lo + 1..=hi).map(|x| Vertex {
-                p: [x, hi, z],
-                axis: 1,
-            }));
-            lp.extend((lo + 1..=hi).rev().map(|y| Vertex {
-                p: [hi, y, z],
-                axis: 0,
-            }));
-            lp.extend((lo + 1..=hi).rev().map(|x| Vertex {
-                p: [x, lo, z],
-                axis: 1,
-            }));
-            lp
-        };
         // (bar from, bar to, loop lo, loop hi, core): the loop on the bar's surface, then
         // wider, then round a bar 3..=8 with a core of the other side 5..=6 round the fan's
         // centre (most of the fan is still in the bar, so the bar's side wins).
@@ -1932,7 +1934,7 @@ mod tests {
                     Encloses::Material
                 };
                 for z in 0..5 {
-                    let mut lp = ring(lo, hi, z);
+                    let mut lp = square_loop(lo, hi, z);
                     let at = format!(
                         "bar {from}..={to}, core {core:?}, loop {lo}..{hi}, hole {hole}, z {z}"
                     );
@@ -1941,6 +1943,119 @@ mod tests {
                     assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}, reversed");
                 }
             }
+        }
+    }
+
+    /// The fan votes by area: its samples fill each triangle (centroid, midpoint, next
+    /// midpoint) out to 3/4 of the way, so there are more of them far from the centroid than
+    /// near it. A square loop from 1.5 to 13.5 round a pillar 6..=9 (a third of the fan's inner
+    /// part): void, and material round a shaft of the same size
+    /// through a block. Weighted towards the centroid (the samples kept along the spokes), the
+    /// pillar's side would win.
+    ///
+    /// ```text
+    ///   1.5                13.5
+    ///    +------------------+     the fan's samples reach 4.1 and 10.9 on the axes:
+    ///    |    ..........    |     . the other side (rows 4, 5, 10, 11): most of them
+    ///    |    :  ####  :    |     # the pillar 6..=9
+    ///    |    :  ####  :    |
+    ///    |    ..........    |
+    ///    +------------------+
+    /// ```
+    #[test]
+    fn a_fan_votes_by_area_not_by_nearness_to_its_centre() {
+        for shaft in [false, true] {
+            let mut vol = MaskVolume::new([15, 15, 5], Frame::identity());
+            for (x, y, z) in (0..15 * 15 * 5).map(|k| (k % 15, (k / 15) % 15, k / 225)) {
+                let pillar = (6..=9).contains(&x) && (6..=9).contains(&y);
+                vol.set(x, y, z, pillar != shaft);
+            }
+            let want = if shaft {
+                Encloses::Material
+            } else {
+                Encloses::Void
+            };
+            for z in 0..5 {
+                let mut lp = square_loop(1, 13, z);
+                assert_eq!(encloses_by_fan(&vol, &lp), want, "shaft {shaft}, z {z}");
+                lp.reverse();
+                assert_eq!(
+                    encloses_by_fan(&vol, &lp),
+                    want,
+                    "shaft {shaft}, z {z}, reversed"
+                );
+            }
+        }
+        // A block beside the pillar's place, filling the fan's inner part up to a third of
+        // the way from one side (x <= 6, and its mirror images: x >= 9, y <= 6, y >= 9): void, whichever vertex the
+        // loop starts from (a vote leaning towards the first vertex says material from there).
+        for side in 0..4 {
+            let mut vol = MaskVolume::new([15, 15, 5], Frame::identity());
+            for (x, y, z) in (0..15 * 15 * 5).map(|k| (k % 15, (k / 15) % 15, k / 225)) {
+                let (u, flip) = (if side % 2 == 0 { x } else { y }, side >= 2);
+                vol.set(x, y, z, if flip { u >= 9 } else { u <= 6 });
+            }
+            let lp = square_loop(1, 13, 2);
+            for start in 0..lp.len() {
+                let mut turned = lp.clone();
+                turned.rotate_left(start);
+                let got = encloses_by_fan(&vol, &turned);
+                assert_eq!(
+                    got,
+                    Encloses::Void,
+                    "block side {side}, from vertex {start}"
+                );
+            }
+        }
+    }
+
+    /// A handle measured after a wall elsewhere removed it (simplify measures a step's
+    /// handles one after another, closing each): no loop crosses its cut once any more, and it
+    /// is reported with no loops (not with its cut as a Reeb loop: the cut bounds a disk now).
+    /// A square ring standing across the sweep, its one handle found, then the ring cut
+    /// through on the side away from the cut.
+    #[test]
+    fn a_handle_whose_cut_no_loop_crosses_has_no_loops() {
+        let conn = Connectivity::Six;
+        let mut vol = MaskVolume::new([14, 8, 14], Frame::identity());
+        for (x, y, z) in (0..14 * 8 * 14).map(|k| (k % 14, (k / 14) % 8, k / 112)) {
+            let outer = (2..12).contains(&x) && (2..12).contains(&z);
+            let hole = (4..10).contains(&x) && (4..10).contains(&z);
+            vol.set(x, y, z, outer && !hole && (2..4).contains(&y));
+        }
+        let r = sweep_z(&mut vol, conn);
+        assert_eq!(r.handles.len(), 1);
+        let h = &r.handles[0];
+        assert!(matches!(h.located.volume, CycleVolume::Top));
+        let affine = Affine::from_spacing([1.0; 3], [0.0; 3]);
+        let limits = [
+            Limits::NONE,
+            Limits {
+                size_only: true,
+                ..Limits::NONE
+            },
+        ];
+        for limits in limits {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
+            assert!(l.reeb.is_some() && l.cross.is_some(), "the ring's handle");
+        }
+        // The cut goes round one leg of the ring (x 2..4 or 10..12): cut the other leg.
+        let cut_x = h.located.cut.iter().map(|v| v.p[0]).sum::<i64>() / h.located.cut.len() as i64;
+        let far: std::ops::Range<usize> = if cut_x < 7 { 10..12 } else { 2..4 };
+        for x in far {
+            for y in 2..4 {
+                vol.set(x, y, 7, false);
+            }
+        }
+        assert_eq!(vol.genus(conn).unwrap().b1, 0);
+        for limits in limits {
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut cache = SliceCache::new(conn);
+            let l = measure(&mut g, &mut cache, h, conn, &affine, limits);
+            let got = (l.reeb.map(|r| r.length), l.cross.map(|c| c.length));
+            assert_eq!(got, (None, None), "size only: {}", limits.size_only);
         }
     }
 
