@@ -495,6 +495,76 @@ mod tests {
         }
     }
 
+    /// Only samples of the thinned region that could cut a thread are searched for a ring
+    /// (each search may cross the whole box, and a region has 64 of them): beside the ring's
+    /// bar lies a hollow cube (a cavity's shell, 152 samples that no thinning removes and that
+    /// split nothing), nearer the given centre than the bar. The bar is still cut, by a wall
+    /// that removes the ring's handle and leaves the cube and its cavity.
+    ///
+    /// ```text
+    ///   z = 3    +--------------------+
+    ///            |  +--------------+  |    ring: 3 wide, z 2..=4
+    ///            |  |   +------+   |  |    cube: x, y 6..=11, z 1..=6, one thick
+    ///            |  |   | cav. |   |  |
+    ///            |  |   +------+   |  |
+    ///            |  +--------------+  |
+    ///            +--------------------+
+    ///               ^ bar at x 7..=9 peeled, loop round it at x = 8
+    /// ```
+    #[test]
+    fn a_shell_beside_the_bar_does_not_use_up_the_ring_searches() {
+        let mut vol = MaskVolume::new([20, 20, 9], Frame::identity());
+        for (x, y, z) in (0..20 * 20 * 9).map(|k| (k % 20, (k / 20) % 20, k / 400)) {
+            let within = |w: usize, lo: usize, hi: usize| (lo..=hi).contains(&w);
+            let ring = within(x, 1, 18)
+                && within(y, 1, 18)
+                && !(within(x, 4, 15) && within(y, 4, 15))
+                && within(z, 2, 4);
+            let cube = within(x, 6, 11) && within(y, 6, 11) && within(z, 1, 6);
+            let cavity = within(x, 7, 10) && within(y, 7, 10) && within(z, 2, 5);
+            vol.set(x, y, z, ring || (cube && !cavity));
+        }
+        let conn = Connectivity::Six;
+        let g = vol.genus(conn).unwrap();
+        assert_eq!((g.b0, g.b1, g.b2), (2, 1, 1));
+        let mut pts = Vec::new();
+        pts.extend((2..5).map(|z| [8.0, 0.5, z as f64]));
+        pts.extend((1..4).map(|y| [8.0, y as f64, 4.5]));
+        pts.extend((2..5).rev().map(|z| [8.0, 3.5, z as f64]));
+        pts.extend((1..4).rev().map(|y| [8.0, y as f64, 1.5]));
+        let bar = (7..=9).flat_map(|x| (0..5).flat_map(move |y| (1..6).map(move |z| [x, y, z])));
+        let around_cube =
+            (5..=12).flat_map(|x| (5..=12).flat_map(move |y| (0..=7).map(move |z| [x, y, z])));
+        let region: Vec<[i64; 3]> = bar.chain(around_cube).collect();
+        let target = PeelTarget {
+            loop_points: &pts,
+            lo: [-1, -1, -1],
+            hi: [20, 20, 9],
+        };
+        let centre = [8.5, 8.5, 3.5];
+        let walls = peel_walls(
+            &mut vol,
+            conn,
+            &region,
+            centre,
+            Operation::Pinch,
+            &target,
+            4,
+        );
+        assert!(!walls.is_empty(), "no wall");
+        for w in &walls {
+            for q in w {
+                assert!(vol.get(q[0], q[1], q[2]), "{q:?} of {w:?}");
+                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, false);
+            }
+            let g = vol.genus(conn).unwrap();
+            assert_eq!((g.b0, g.b1, g.b2), (2, 0, 1), "{w:?}");
+            for q in w {
+                vol.set(q[0] as usize, q[1] as usize, q[2] as usize, true);
+            }
+        }
+    }
+
     /// A loop that does not go round the bar (beside it) links no ring: no wall.
     #[test]
     fn a_cut_must_link_the_loop() {
