@@ -486,6 +486,8 @@ mod tests {
                 *if want > rank { &mut grew } else { &mut flat } += 1;
                 rank = want;
             }
+            // The grown matrix is the whole one.
+            assert_eq!(pairwise_rank(&a.masks, &oracle.curves), Some(rank));
             let mut broken = offers[0].clone();
             broken[0][1].p[2] += 2;
             let before = set.curves().to_vec();
