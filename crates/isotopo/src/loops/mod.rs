@@ -123,10 +123,14 @@ impl HandleLoops {
             .min_by(f64::total_cmp)
     }
 
-    /// The smaller loop.
+    /// The smaller loop: the one of fewer edges, and of two of as many the shorter in
+    /// millimetres (a report's `size_mm` is its length; the Reeb loop on a whole tie).
     pub fn smallest(&self) -> Option<&Loop> {
         match (&self.reeb, &self.cross) {
-            (Some(a), Some(b)) => Some(if b.length < a.length { b } else { a }),
+            (Some(a), Some(b)) => {
+                let key = |l: &Loop| (l.length, l.length_mm);
+                Some(if key(b) < key(a) { b } else { a })
+            }
             (a, b) => a.as_ref().or(b.as_ref()),
         }
     }
@@ -2007,6 +2011,41 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The smaller loop is the one of fewer edges, and of two of as many the shorter in
+    /// millimetres, whichever is the Reeb loop; alone, it is the smaller.
+    #[test]
+    fn the_smaller_loop_is_shorter_in_edges_then_in_millimetres() {
+        let lp = |length: usize, length_mm: f64| Loop {
+            vertices: Vec::new(),
+            points: Vec::new(),
+            length,
+            length_mm,
+            encloses: Encloses::Void,
+        };
+        let pairs = [
+            (lp(4, 6.0), lp(5, 2.0), 6.0),
+            (lp(4, 6.0), lp(4, 4.5), 4.5),
+            (lp(4, 4.5), lp(4, 6.0), 4.5),
+            (lp(4, 4.5), lp(4, 4.5), 4.5),
+        ];
+        for (a, b, want) in pairs {
+            for (reeb, cross) in [(a.clone(), b.clone()), (b.clone(), a.clone())] {
+                let what = format!("{reeb:?} {cross:?}");
+                let l = HandleLoops {
+                    reeb: Some(reeb),
+                    cross: Some(cross),
+                    ..HandleLoops::default()
+                };
+                assert_eq!(l.smallest().map(|s| s.length_mm), Some(want), "{what}");
+            }
+        }
+        let alone = HandleLoops {
+            cross: Some(lp(7, 9.0)),
+            ..HandleLoops::default()
+        };
+        assert_eq!(alone.smallest().map(|s| s.length), Some(7));
     }
 
     /// A handle measured after a wall elsewhere removed it (simplify measures a step's
