@@ -404,12 +404,17 @@ mod tests {
                 }
             }
         }
+        (vol, loop_round_bar(6.0))
+    }
+
+    /// The loop round a bar of section y 1..=3, z 2..=4 at `x` (edge midpoints).
+    fn loop_round_bar(x: f64) -> Vec<[f64; 3]> {
         let mut pts = Vec::new();
-        pts.extend((2..5).map(|z| [6.0, 0.5, z as f64]));
-        pts.extend((1..4).map(|y| [6.0, y as f64, 4.5]));
-        pts.extend((2..5).rev().map(|z| [6.0, 3.5, z as f64]));
-        pts.extend((1..4).rev().map(|y| [6.0, y as f64, 1.5]));
-        (vol, pts)
+        pts.extend((2..5).map(|z| [x, 0.5, z as f64]));
+        pts.extend((1..4).map(|y| [x, y as f64, 4.5]));
+        pts.extend((2..5).rev().map(|z| [x, 3.5, z as f64]));
+        pts.extend((1..4).rev().map(|y| [x, y as f64, 1.5]));
+        pts
     }
 
     /// Peels the slab x = 6 across the ring's bar towards its centre, for the loop `pts`,
@@ -527,11 +532,7 @@ mod tests {
         let conn = Connectivity::Six;
         let g = vol.genus(conn).unwrap();
         assert_eq!((g.b0, g.b1, g.b2), (2, 1, 1));
-        let mut pts = Vec::new();
-        pts.extend((2..5).map(|z| [8.0, 0.5, z as f64]));
-        pts.extend((1..4).map(|y| [8.0, y as f64, 4.5]));
-        pts.extend((2..5).rev().map(|z| [8.0, 3.5, z as f64]));
-        pts.extend((1..4).rev().map(|y| [8.0, y as f64, 1.5]));
+        let pts = loop_round_bar(8.0);
         let bar = (7..=9).flat_map(|x| (0..5).flat_map(move |y| (1..6).map(move |z| [x, y, z])));
         let around_cube =
             (5..=12).flat_map(|x| (5..=12).flat_map(move |y| (0..=7).map(move |z| [x, y, z])));

@@ -325,16 +325,30 @@ mod tests {
     fn pairwise_rank(vol: &MaskVolume, curves: &[Vec<Vertex>]) -> Option<usize> {
         let mut g = Graph::new(vol, cases(Connectivity::Six));
         let n = curves.len();
-        let mut rows = vec![vec![0u64; n.div_ceil(64)]; n];
+        let mut rows = vec![vec![false; n]; n];
         for a in 0..n {
             for b in a + 1..n {
-                if crossing_parity(&mut g, &curves[a], &curves[b])? == 1 {
-                    rows[a][b / 64] |= 1 << (b % 64);
-                    rows[b][a / 64] |= 1 << (a % 64);
-                }
+                let odd = crossing_parity(&mut g, &curves[a], &curves[b])? == 1;
+                (rows[a][b], rows[b][a]) = (odd, odd);
             }
         }
-        Some(rank_mod2(&mut rows))
+        Some(rank_of_parities(&rows))
+    }
+
+    /// Rank over GF(2) of a square matrix of parities.
+    fn rank_of_parities(rows: &[Vec<bool>]) -> usize {
+        let n = rows.len();
+        let mut bits: Vec<Vec<u64>> = rows
+            .iter()
+            .map(|r| {
+                let mut w = vec![0u64; n.div_ceil(64)];
+                for (b, _) in r.iter().enumerate().filter(|e| *e.1) {
+                    w[b / 64] |= 1 << (b % 64);
+                }
+                w
+            })
+            .collect();
+        rank_mod2(&mut bits)
     }
 
     /// [`pairwise_rank`] for a list of curves that only grows: each new curve is walked against
@@ -368,19 +382,7 @@ mod tests {
                 self.rows.push(row);
                 self.curves.push(c.clone());
             }
-            let n = self.curves.len();
-            let mut bits: Vec<Vec<u64>> = self
-                .rows
-                .iter()
-                .map(|r| {
-                    let mut w = vec![0u64; n.div_ceil(64)];
-                    for (b, _) in r.iter().enumerate().filter(|e| *e.1) {
-                        w[b / 64] |= 1 << (b % 64);
-                    }
-                    w
-                })
-                .collect();
-            Some(rank_mod2(&mut bits))
+            Some(rank_of_parities(&self.rows))
         }
     }
 

@@ -1887,6 +1887,17 @@ mod tests {
         lp
     }
 
+    /// The fan of [`square_loop`] from `lo` to `hi` says `want` in every plane of `vol`'s 5,
+    /// with the loop's vertices in either order.
+    fn assert_fan_says(vol: &MaskVolume, lo: i64, hi: i64, want: Encloses, at: &str) {
+        for z in 0..5 {
+            let mut lp = square_loop(lo, hi, z);
+            assert_eq!(encloses_by_fan(vol, &lp), want, "{at}, z {z}");
+            lp.reverse();
+            assert_eq!(encloses_by_fan(vol, &lp), want, "{at}, z {z}, reversed");
+        }
+    }
+
     /// Without a partner loop, the side a loop spans is read off its fan: round a bar of
     /// 3 × 3 samples, material; round a hole of the same size through a block, void; the
     /// same loop at any height of the bar and with its vertices in either order.
@@ -1937,15 +1948,8 @@ mod tests {
                 } else {
                     Encloses::Material
                 };
-                for z in 0..5 {
-                    let mut lp = square_loop(lo, hi, z);
-                    let at = format!(
-                        "bar {from}..={to}, core {core:?}, loop {lo}..{hi}, hole {hole}, z {z}"
-                    );
-                    assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}");
-                    lp.reverse();
-                    assert_eq!(encloses_by_fan(&vol, &lp), want, "{at}, reversed");
-                }
+                let at = format!("bar {from}..={to}, core {core:?}, loop {lo}..{hi}, hole {hole}");
+                assert_fan_says(&vol, lo, hi, want, &at);
             }
         }
     }
@@ -1979,20 +1983,12 @@ mod tests {
             } else {
                 Encloses::Void
             };
-            for z in 0..5 {
-                let mut lp = square_loop(1, 13, z);
-                assert_eq!(encloses_by_fan(&vol, &lp), want, "shaft {shaft}, z {z}");
-                lp.reverse();
-                assert_eq!(
-                    encloses_by_fan(&vol, &lp),
-                    want,
-                    "shaft {shaft}, z {z}, reversed"
-                );
-            }
+            assert_fan_says(&vol, 1, 13, want, &format!("shaft {shaft}"));
         }
         // A block beside the pillar's place, filling the fan's inner part up to a third of
-        // the way from one side (x <= 6, and its mirror images: x >= 9, y <= 6, y >= 9): void, whichever vertex the
-        // loop starts from (a vote leaning towards the first vertex says material from there).
+        // the way from one side (x <= 6, and its mirror images y <= 6, x >= 9, y >= 9): void,
+        // whichever vertex the loop starts from (a vote leaning towards the first vertex says
+        // material from there).
         for side in 0..4 {
             let mut vol = MaskVolume::new([15, 15, 5], Frame::identity());
             for (x, y, z) in (0..15 * 15 * 5).map(|k| (k % 15, (k / 15) % 15, k / 225)) {
@@ -2056,12 +2052,7 @@ mod tests {
     #[test]
     fn a_handle_whose_cut_no_loop_crosses_has_no_loops() {
         let conn = Connectivity::Six;
-        let mut vol = MaskVolume::new([14, 8, 14], Frame::identity());
-        for (x, y, z) in (0..14 * 8 * 14).map(|k| (k % 14, (k / 14) % 8, k / 112)) {
-            let outer = (2..12).contains(&x) && (2..12).contains(&z);
-            let hole = (4..10).contains(&x) && (4..10).contains(&z);
-            vol.set(x, y, z, outer && !hole && (2..4).contains(&y));
-        }
+        let mut vol = standing_ring(2);
         let r = sweep_z(&mut vol, conn);
         assert_eq!(r.handles.len(), 1);
         let h = &r.handles[0];
@@ -2749,6 +2740,18 @@ mod tests {
     }
 
     /// The handles a sweep along z finds in `vol`.
+    /// A square ring standing across the sweep (in the xz-plane, x and z 2..12), its tube `w`
+    /// voxels thick (and deep along y), in 14 × 8 × 14.
+    fn standing_ring(w: usize) -> MaskVolume {
+        let mut vol = MaskVolume::new([14, 8, 14], Frame::identity());
+        for (x, y, z) in (0..14 * 8 * 14).map(|k| (k % 14, (k / 14) % 8, k / 112)) {
+            let outer = (2..12).contains(&x) && (2..12).contains(&z);
+            let hole = (2 + w..12 - w).contains(&x) && (2 + w..12 - w).contains(&z);
+            vol.set(x, y, z, outer && !hole && (2..2 + w).contains(&y));
+        }
+        vol
+    }
+
     fn sweep_z(vol: &mut MaskVolume, conn: Connectivity) -> crate::sweep::HandleReport {
         let progress = crate::progress::NoProgress;
         crate::sweep::find_handles(vol, crate::grid::Axis::Z, conn, &progress).unwrap()
@@ -2972,17 +2975,8 @@ mod tests {
         let conn = Connectivity::Six;
         // Square rings standing across the sweep, of tubes 1 to 3 voxels thick: a path along
         // a flat side comes back to the vertex of the cut it left from.
-        let ring = |w: usize| {
-            let mut vol = MaskVolume::new([14, 8, 14], Frame::identity());
-            for (x, y, z) in (0..14 * 8 * 14).map(|k| (k % 14, (k / 14) % 8, k / 112)) {
-                let outer = (2..12).contains(&x) && (2..12).contains(&z);
-                let hole = (2 + w..12 - w).contains(&x) && (2 + w..12 - w).contains(&z);
-                vol.set(x, y, z, outer && !hole && (2..2 + w).contains(&y));
-            }
-            vol
-        };
         let volumes = (1..=3)
-            .map(ring)
+            .map(standing_ring)
             .chain((0..3u64).map(|seed| sponge(24, 0x9e37_79b9_7f4a_7c15 ^ seed)));
         let mut chained = 0;
         for mut vol in volumes {
