@@ -232,33 +232,21 @@ macro_rules! with_plane_values {
     ($lower:expr, $upper:expr, $info:expr, $lo:ident, $up:ident => $body:expr) => {{
         let dtype = $info.dtype;
         let (nx, ny, scaling) = ($info.dims[0], $info.dims[1], $info.scaling);
-        macro_rules! typed {
-            ($t:ty) => {{
-                let $lo = PlaneValues::<$t> {
-                    v: $lower.and_then(<$t>::view),
-                    nx,
-                    ny,
-                    scaling,
-                };
-                let $up = PlaneValues::<$t> {
-                    v: $upper.and_then(<$t>::view),
-                    nx,
-                    ny,
-                    scaling,
-                };
-                $body
-            }};
-        }
-        match dtype {
-            DType::U8 => typed!(u8),
-            DType::I8 => typed!(i8),
-            DType::U16 => typed!(u16),
-            DType::I16 => typed!(i16),
-            DType::U32 => typed!(u32),
-            DType::I32 => typed!(i32),
-            DType::F32 => typed!(f32),
-            DType::F64 => typed!(f64),
-        }
+        $crate::volume::with_dtype!(dtype, T => {
+            let $lo = PlaneValues::<T> {
+                v: $lower.and_then(T::view),
+                nx,
+                ny,
+                scaling,
+            };
+            let $up = PlaneValues::<T> {
+                v: $upper.and_then(T::view),
+                nx,
+                ny,
+                scaling,
+            };
+            $body
+        })
     }};
 }
 

@@ -15,7 +15,7 @@ use super::values::{edge_point, SliceValues};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::unionfind::UnionFind;
-use crate::volume::{Affine, BBox, DType, Sample, Samples, SliceReader, VolumeInfo};
+use crate::volume::{Affine, BBox, Sample, Samples, SliceReader, VolumeInfo};
 use rayon::prelude::*;
 
 /// What defines the isosurface: the isovalue, which side is inside, and the digital connectivity.
@@ -305,29 +305,15 @@ pub(crate) fn ribbon_areas(
     let Some(dtype) = values.lower.or(values.upper).map(|v| v.dtype()) else {
         return vec![0.0; s.ribbons.len()];
     };
-    macro_rules! typed {
-        ($t:ty) => {
-            areas_typed::<$t>(
-                s,
-                values.lower.and_then(<$t>::view),
-                values.upper.and_then(<$t>::view),
-                values,
-                iso,
-                affine,
-                conn,
-            )
-        };
-    }
-    match dtype {
-        DType::U8 => typed!(u8),
-        DType::I8 => typed!(i8),
-        DType::U16 => typed!(u16),
-        DType::I16 => typed!(i16),
-        DType::U32 => typed!(u32),
-        DType::I32 => typed!(i32),
-        DType::F32 => typed!(f32),
-        DType::F64 => typed!(f64),
-    }
+    crate::volume::with_dtype!(dtype, T => areas_typed::<T>(
+        s,
+        values.lower.and_then(T::view),
+        values.upper.and_then(T::view),
+        values,
+        iso,
+        affine,
+        conn,
+    ))
 }
 
 /// Cofactor matrix of the affine's linear part: maps a voxel-space cross product (twice a

@@ -158,6 +158,48 @@ macro_rules! with_samples {
     };
 }
 
+/// Runs `$body` with `$t` naming the primitive type of the [`DType`] `$dtype` (one copy of
+/// `$body` per type: generic code over [`Sample`] called with the samples' own type).
+macro_rules! with_dtype {
+    ($dtype:expr, $t:ident => $body:expr) => {
+        match $dtype {
+            $crate::volume::DType::U8 => {
+                type $t = u8;
+                $body
+            }
+            $crate::volume::DType::I8 => {
+                type $t = i8;
+                $body
+            }
+            $crate::volume::DType::U16 => {
+                type $t = u16;
+                $body
+            }
+            $crate::volume::DType::I16 => {
+                type $t = i16;
+                $body
+            }
+            $crate::volume::DType::U32 => {
+                type $t = u32;
+                $body
+            }
+            $crate::volume::DType::I32 => {
+                type $t = i32;
+                $body
+            }
+            $crate::volume::DType::F32 => {
+                type $t = f32;
+                $body
+            }
+            $crate::volume::DType::F64 => {
+                type $t = f64;
+                $body
+            }
+        }
+    };
+}
+pub(crate) use with_dtype;
+
 /// A primitive sample type: conversion from file bytes and to `f64`.
 pub trait Sample: bytemuck::Pod + Send + Sync + PartialOrd + 'static {
     /// The [`DType`] of this primitive type.

@@ -30,6 +30,7 @@ pub mod stats;
 mod stream;
 mod tiff;
 
+pub(crate) use dtype::with_dtype;
 pub use dtype::{DType, Endian, Sample, Samples, Threshold};
 pub use geometry::{Affine, BBox};
 pub use memory::InMemoryVolume;
