@@ -2739,7 +2739,6 @@ mod tests {
         vol
     }
 
-    /// The handles a sweep along z finds in `vol`.
     /// A square ring standing across the sweep (in the xz-plane, x and z 2..12), its tube `w`
     /// voxels thick (and deep along y), in 14 × 8 × 14.
     fn standing_ring(w: usize) -> MaskVolume {
@@ -2752,6 +2751,7 @@ mod tests {
         vol
     }
 
+    /// The handles a sweep along z finds in `vol`.
     fn sweep_z(vol: &mut MaskVolume, conn: Connectivity) -> crate::sweep::HandleReport {
         let progress = crate::progress::NoProgress;
         crate::sweep::find_handles(vol, crate::grid::Axis::Z, conn, &progress).unwrap()
