@@ -162,39 +162,15 @@ macro_rules! with_samples {
 /// `$body` per type: generic code over [`Sample`] called with the samples' own type).
 macro_rules! with_dtype {
     ($dtype:expr, $t:ident => $body:expr) => {
+        $crate::volume::with_dtype!(@arms $dtype, $t, $body;
+            U8 u8, I8 i8, U16 u16, I16 i16, U32 u32, I32 i32, F32 f32, F64 f64)
+    };
+    (@arms $dtype:expr, $t:ident, $body:expr; $($variant:ident $prim:ty),*) => {
         match $dtype {
-            $crate::volume::DType::U8 => {
-                type $t = u8;
+            $($crate::volume::DType::$variant => {
+                type $t = $prim;
                 $body
-            }
-            $crate::volume::DType::I8 => {
-                type $t = i8;
-                $body
-            }
-            $crate::volume::DType::U16 => {
-                type $t = u16;
-                $body
-            }
-            $crate::volume::DType::I16 => {
-                type $t = i16;
-                $body
-            }
-            $crate::volume::DType::U32 => {
-                type $t = u32;
-                $body
-            }
-            $crate::volume::DType::I32 => {
-                type $t = i32;
-                $body
-            }
-            $crate::volume::DType::F32 => {
-                type $t = f32;
-                $body
-            }
-            $crate::volume::DType::F64 => {
-                type $t = f64;
-                $body
-            }
+            })*
         }
     };
 }
