@@ -15,7 +15,7 @@
 pub mod basis;
 mod linking;
 
-pub use linking::linking_number;
+pub use linking::{linking_number, Overpass};
 
 use crate::error::Result;
 use crate::grid::{Frame, MaskVolume};
