@@ -8,7 +8,8 @@
 //! pieces of its side beside it (and one of the other) is where a single flip cuts a thread of
 //! the side. That flip removes one handle and nothing else exactly when the two pieces stay
 //! joined elsewhere: the thread is part of a *ring* of the side, and the ring the loop goes
-//! round when it links the loop ([`Ring`]: a search through the side, then a linking number).
+//! round when every such ring links the loop and no ring avoiding the sample does ([`Ring`]: a
+//! search through the side that counts, step by step, how its path links the loop).
 //! Then every thinned sample whose flip back is simple again is flipped back, so that the wall
 //! keeps only what the change needs.
 //!
@@ -26,11 +27,12 @@
 use super::Operation;
 use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers, FACES};
 use crate::grid::{shift, BoxCells, MaskVolume};
+use crate::loops::Overpass;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 
 /// The loop a peeled wall closes, and the box within which the ring it goes round is looked
-/// for (a search through the side, then a linking number).
+/// for.
 pub struct PeelTarget<'a> {
     /// The loop's points (edge midpoints, volume-local), closed.
     pub loop_points: &'a [[f64; 3]],
@@ -116,40 +118,56 @@ const MAX_RING_SEARCHES: usize = 64;
 /// Samples a ring search may label (the box is skipped beyond: 16 MiB of labels).
 const MAX_RING_BOX: usize = 1 << 22;
 
-/// Tells whether flipping a sample cuts a ring of its side that the loop goes round:
+/// Tells whether flipping a sample cuts the rings of its side that the loop goes round, and
+/// only those:
 ///
 /// ```text
 ///        side (e.g. the void of a tunnel)          q has two pieces A, B of its side beside
 ///      +-------------------------------+           it; a path A ~> B of the side avoiding q,
-///      |   A  q  B     loop a round q  |           closed through q, is a ring. If it links
-///      |   ^      |    (its fan)       |           the loop, flipping q cuts the ring the
-///      |   +------+  path round        |           loop goes round, and since A and B stay
-///      +-------------------------------+           joined the side does not fall apart.
+///      |   A  q  B     loop a round q  |           closed through q, is a ring. If every
+///      |   ^      |    (its fan)       |           such ring links the loop, and no ring of
+///      |   +------+  path round        |           the side avoiding q does, flipping q cuts
+///      +-------------------------------+           what the loop goes round, and since A and
+///                                                  B stay joined the side does not fall apart.
 /// ```
 ///
+/// Linking is counted mod 2, step by step: a path's parity is how many times it passes through
+/// the curtain hanging from the loop ([`Overpass`]), and the search runs through pairs (sample,
+/// parity), the side taken twice. The rings through q are then all odd exactly when the pairs
+/// reached from A never meet those reached from B, and A reaches B's samples (with the other
+/// parity). So the answer is a property of the side and the loop, not of the order in which the
+/// search goes: two rings through q that differ in linking the loop (round q's thread and round
+/// another) mean that the cut would leave the loop going round something, and q is refused.
+///
 /// Flipping such a q (in a region thinned by simple samples) removes exactly one handle and
-/// changes no component or cavity; the path is searched within the target's box only.
-struct Ring<'a> {
-    target: &'a PeelTarget<'a>,
+/// changes no component or cavity; the paths are searched within the target's box only.
+struct Ring {
+    overpass: Overpass,
     side: bool,
     six: bool,
     cells: BoxCells,
-    /// Per box cell: generation it was reached in, and the cell it was reached from.
+    /// Per box cell and parity (`2 * cell + parity`): the search, and the front, that reached it.
     stamp: Vec<u32>,
-    from: Vec<u32>,
     generation: u32,
 }
 
-impl<'a> Ring<'a> {
-    fn new(target: &'a PeelTarget<'a>, side: bool, conn: Connectivity) -> Ring<'a> {
+/// Moved by this off the grid (the loop, the other way), no step of a search meets the loop.
+const NUDGE: [f64; 3] = [1.1e-3, 2.3e-3, 3.7e-3];
+
+impl Ring {
+    fn new(target: &PeelTarget, side: bool, conn: Connectivity) -> Ring {
+        let moved: Vec<[f64; 3]> = target
+            .loop_points
+            .iter()
+            .map(|p| std::array::from_fn(|k| p[k] - NUDGE[k]))
+            .collect();
         Ring {
-            target,
+            overpass: Overpass::new(&moved),
             side,
             // Inside samples are 6-adjacent with connectivity 6, outside ones with 26.
             six: side == (conn == Connectivity::Six),
             cells: BoxCells::new(target.lo, target.hi),
             stamp: Vec::new(),
-            from: Vec::new(),
             generation: 0,
         }
     }
@@ -162,9 +180,17 @@ impl<'a> Ring<'a> {
         self.cells.sample(c)
     }
 
-    /// Does flipping `q` cut a ring of the side that the loop goes round (see the type)?
-    /// Searched from both pieces at once, the smaller front first: a piece closed off within
-    /// the box (the flip would split the side) is done with at the cost of that piece.
+    /// Does the step between two samples pass through the loop's curtain an odd number of
+    /// times? (1 if so.)
+    fn parity(&self, p: [i64; 3], r: [i64; 3]) -> usize {
+        let at = |p: [i64; 3]| p.map(|x| x as f64);
+        (self.overpass.over(at(p), at(r)) & 1) as usize
+    }
+
+    /// Does flipping `q` cut the rings of the side that the loop goes round, and only those (see
+    /// the type)? Searched from both pieces at once, the smaller front first: a piece closed off
+    /// within the box (the flip would split the side), or the rings all odd, are known when one
+    /// front has run out, at the cost of that front.
     fn cuts(&mut self, vol: &MaskVolume, q: [i64; 3]) -> bool {
         let cells = self.cells.len();
         let Some(qc) = self.cell(q) else {
@@ -173,9 +199,8 @@ impl<'a> Ring<'a> {
         if cells > MAX_RING_BOX {
             return false;
         }
-        if self.stamp.len() < cells {
-            self.stamp = vec![0; cells];
-            self.from = vec![0; cells];
+        if self.stamp.len() < 2 * cells {
+            self.stamp = vec![0; 2 * cells];
         }
         // Two stamps per search: reached from piece 0, from piece 1.
         self.generation += 2;
@@ -193,60 +218,45 @@ impl<'a> Ring<'a> {
             std::collections::VecDeque::new(),
             std::collections::VecDeque::new(),
         ];
+        let mut starts: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
         for k in 0..26 {
-            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(shift(q, nb.offsets[k]))) {
-                self.stamp[c] = stamps[p];
-                self.from[c] = qc as u32;
-                fronts[p].push_back(c);
+            let r = shift(q, nb.offsets[k]);
+            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(r)) {
+                let state = 2 * c + self.parity(q, r);
+                self.stamp[state] = stamps[p];
+                fronts[p].push_back(state);
+                starts[p].push(c);
             }
         }
         let steps: &[[i64; 3]] = if self.six { &FACES } else { &nb.offsets };
         loop {
             let i = usize::from(fronts[1].len() < fronts[0].len());
-            let Some(c) = fronts[i].pop_front() else {
-                return false;
+            let Some(state) = fronts[i].pop_front() else {
+                // All reached from piece i: the other piece, with the other parity, or not.
+                return starts[1 - i].iter().any(|&c| {
+                    self.stamp[2 * c] == stamps[i] || self.stamp[2 * c + 1] == stamps[i]
+                });
             };
-            let p = self.sample(c);
+            let p = self.sample(state / 2);
             for d in steps {
                 let r = shift(p, *d);
                 let Some(rc) = self.cell(r).filter(|&rc| rc != qc) else {
                     continue;
                 };
-                if self.stamp[rc] == stamps[1 - i] {
-                    return self.links(qc, c, rc);
+                if vol.get(r[0], r[1], r[2]) != self.side {
+                    continue;
                 }
-                if self.stamp[rc] != stamps[i] && vol.get(r[0], r[1], r[2]) == self.side {
-                    self.stamp[rc] = stamps[i];
-                    self.from[rc] = c as u32;
-                    fronts[i].push_back(rc);
+                let next = 2 * rc + ((state & 1) ^ self.parity(p, r));
+                if self.stamp[next] == stamps[1 - i] {
+                    // A ring through q with as many crossings from both ends: even.
+                    return false;
+                }
+                if self.stamp[next] != stamps[i] {
+                    self.stamp[next] = stamps[i];
+                    fronts[i].push_back(next);
                 }
             }
         }
-    }
-
-    /// The samples from `c` back to q (excluded) along the search's steps.
-    fn trace(&self, qc: usize, mut c: usize) -> Vec<[i64; 3]> {
-        let mut out = Vec::new();
-        while c != qc {
-            out.push(self.sample(c));
-            c = self.from[c] as usize;
-        }
-        out
-    }
-
-    /// Does the ring q ~> a, b ~> q (the two fronts met across the step a -> b) link the loop?
-    fn links(&self, qc: usize, a: usize, b: usize) -> bool {
-        let mut ring = self.trace(qc, a);
-        ring.reverse();
-        ring.extend(self.trace(qc, b));
-        ring.push(self.sample(qc));
-        // Off the grid a little, so that no segment of the ring meets one of the loop.
-        let nudge = [1.1e-3, 2.3e-3, 3.7e-3];
-        let ring: Vec<[f64; 3]> = ring
-            .iter()
-            .map(|p| std::array::from_fn(|k| p[k] as f64 + nudge[k]))
-            .collect();
-        crate::loops::linking_number(&ring, self.target.loop_points) != 0
     }
 }
 
@@ -315,6 +325,7 @@ fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [b
 mod tests {
     use super::*;
     use crate::grid::Frame;
+    use crate::loops::linking_number;
 
     /// Looking again only at the neighbours of flipped samples loses nothing: `flip_simple`
     /// flips the same samples in the same order as passes over every candidate until a pass
@@ -564,6 +575,292 @@ mod tests {
                 vol.set(q[0] as usize, q[1] as usize, q[2] as usize, true);
             }
         }
+    }
+
+    /// [`Ring::cuts`]'s answer, found another way: a spanning tree of the side within the box
+    /// (q left out) from a sample of one of q's pieces, every cycle closed by a step off the
+    /// tree, and every ring through q (out to a sample of one piece, along the tree to a sample
+    /// of the other, back to q), each linked with the loop by [`linking_number`] whole (no
+    /// parity carried step by step, no [`Overpass`]). [`Ring::cuts`] should be true for `Odd`
+    /// only.
+    fn rings_by_cycles(
+        vol: &MaskVolume,
+        side: bool,
+        six: bool,
+        q: [i64; 3],
+        (lo, hi): ([i64; 3], [i64; 3]),
+        loop_points: &[[f64; 3]],
+    ) -> Rings {
+        let nb = neighbourhood();
+        let cells = BoxCells::new(lo, hi);
+        let is_side =
+            |r: [i64; 3]| cells.index(r).is_some() && r != q && vol.get(r[0], r[1], r[2]) == side;
+        let member: [bool; 26] = std::array::from_fn(|k| {
+            let r = shift(q, nb.offsets[k]);
+            vol.get(r[0], r[1], r[2]) == side
+        });
+        let mut piece = [usize::MAX; 26];
+        if label_pieces(&member, six, |p, k| piece[k] = p) != 2 {
+            return Rings::Apart;
+        }
+        let ends: [Vec<[i64; 3]>; 2] = [0, 1].map(|p| {
+            (0..26)
+                .filter(|&k| piece[k] == p)
+                .map(|k| shift(q, nb.offsets[k]))
+                .filter(|&r| is_side(r))
+                .collect()
+        });
+        let Some(&root) = ends[0].first() else {
+            return Rings::Apart;
+        };
+        let steps: &[[i64; 3]] = if six { &FACES } else { &nb.offsets };
+        let parent = spanning_tree(root, steps, is_side);
+        if !ends[1].iter().any(|b| parent.contains_key(b)) {
+            return Rings::Apart;
+        }
+        let tree_path = |u, v| tree_path(&parent, u, v);
+        let odd = |cycle: &[[i64; 3]]| {
+            let nudged: Vec<[f64; 3]> = cycle
+                .iter()
+                .map(|p| std::array::from_fn(|k| p[k] as f64 + NUDGE[k]))
+                .collect();
+            linking_number(&nudged, loop_points) % 2 != 0
+        };
+        for (&u, &pu) in &parent {
+            for d in steps {
+                let v = shift(u, *d);
+                if parent
+                    .get(&v)
+                    .is_some_and(|&pv| u < v && pv != u && pu != v)
+                    && odd(&tree_path(u, v))
+                {
+                    return Rings::Both;
+                }
+            }
+        }
+        let rings = ends[0].iter().flat_map(|&a| {
+            ends[1]
+                .iter()
+                .filter(|b| parent.contains_key(*b))
+                .map(move |&b| (a, b))
+        });
+        let parities: Vec<bool> = rings
+            .map(|(a, b)| {
+                let mut ring = tree_path(a, b);
+                ring.push(q);
+                odd(&ring)
+            })
+            .collect();
+        match (parities.contains(&false), parities.contains(&true)) {
+            (true, true) => Rings::Both,
+            (false, _) => Rings::Odd,
+            (true, false) => Rings::Even,
+        }
+    }
+
+    /// The samples `is_side` reached from `root` by `steps`, each with the one it was reached
+    /// from (the root with itself).
+    fn spanning_tree(
+        root: [i64; 3],
+        steps: &[[i64; 3]],
+        is_side: impl Fn([i64; 3]) -> bool,
+    ) -> FastMap<[i64; 3], [i64; 3]> {
+        let mut parent: FastMap<[i64; 3], [i64; 3]> = FastMap::default();
+        parent.insert(root, root);
+        let mut queue = std::collections::VecDeque::from([root]);
+        while let Some(u) = queue.pop_front() {
+            for d in steps {
+                let v = shift(u, *d);
+                if is_side(v) && !parent.contains_key(&v) {
+                    parent.insert(v, u);
+                    queue.push_back(v);
+                }
+            }
+        }
+        parent
+    }
+
+    /// The tree path from u to v: up from u to where the two paths up to the root meet, then
+    /// down to v.
+    fn tree_path(parent: &FastMap<[i64; 3], [i64; 3]>, u: [i64; 3], v: [i64; 3]) -> Vec<[i64; 3]> {
+        let up = |mut u: [i64; 3]| {
+            let mut path = vec![u];
+            while parent[&u] != u {
+                u = parent[&u];
+                path.push(u);
+            }
+            path
+        };
+        let (mut pu, mut pv) = (up(u), up(v));
+        while pu.len() > 1 && pv.len() > 1 && pu[pu.len() - 2] == pv[pv.len() - 2] {
+            pu.pop();
+            pv.pop();
+        }
+        pv.pop();
+        pu.extend(pv.into_iter().rev());
+        pu
+    }
+
+    /// How the rings through a sample link a loop: the pieces beside it are apart (no ring), or
+    /// the rings all link it evenly, all oddly, or both kinds are there.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum Rings {
+        Apart,
+        Even,
+        Odd,
+        Both,
+    }
+
+    /// A rectangle in a plane between samples across `axis` (between samples `at` and
+    /// `at + 1`), its sides between samples too (round samples `u0 + 1 ..= u1` and
+    /// `v0 + 1 ..= v1` of the other two axes), a vertex every half sample.
+    struct Rectangle {
+        axis: usize,
+        at: i64,
+        u: (i64, i64),
+        v: (i64, i64),
+    }
+
+    impl Rectangle {
+        fn random(rng: &mut crate::test_rng::Rng, n: u64) -> Rectangle {
+            let mut span = || {
+                let a = rng.below(n - 2) as i64;
+                (a, a + 1 + rng.below(n - 1 - a as u64) as i64)
+            };
+            let (u, v) = (span(), span());
+            Rectangle {
+                axis: rng.below(3) as usize,
+                at: rng.below(n - 1) as i64,
+                u,
+                v,
+            }
+        }
+
+        fn points(&self) -> Vec<[f64; 3]> {
+            let half = |x: i64| x as f64 + 0.5;
+            let ((u0, u1), (v0, v1)) = (self.u, self.v);
+            let mut flat = Vec::new();
+            flat.extend((0..2 * (u1 - u0)).map(|i| (half(u0) + 0.5 * i as f64, half(v0))));
+            flat.extend((0..2 * (v1 - v0)).map(|i| (half(u1), half(v0) + 0.5 * i as f64)));
+            flat.extend((0..2 * (u1 - u0)).map(|i| (half(u1) - 0.5 * i as f64, half(v1))));
+            flat.extend((0..2 * (v1 - v0)).map(|i| (half(u0), half(v1) - 0.5 * i as f64)));
+            flat.iter()
+                .map(|&(a, b)| self.place(half(self.at), a, b))
+                .collect()
+        }
+
+        /// The point with these coordinates across the plane, along u and along v.
+        fn place<T: Copy + Default>(&self, across: T, along_u: T, along_v: T) -> [T; 3] {
+            let mut p = [T::default(); 3];
+            p[self.axis] = across;
+            p[(self.axis + 1) % 3] = along_u;
+            p[(self.axis + 2) % 3] = along_v;
+            p
+        }
+    }
+
+    /// Threads of the side in a cube of the other side with specks of the side: closed walks of
+    /// face steps, the first out through the rectangle.
+    fn threads(
+        rng: &mut crate::test_rng::Rng,
+        n: usize,
+        side: bool,
+        rect: &Rectangle,
+    ) -> MaskVolume {
+        let mut vol = MaskVolume::new([n; 3], Frame::identity());
+        for k in 0..n * n * n {
+            vol.set(k % n, k / n % n, k / (n * n), (rng.below(100) < 5) == side);
+        }
+        for walk in 0..1 + rng.below(3) {
+            let mut start = [0; 3].map(|_| rng.below(n as u64) as i64);
+            if walk == 0 {
+                let inside = |(a, b): (i64, i64), rng: &mut crate::test_rng::Rng| {
+                    a + 1 + rng.below((b - a) as u64) as i64
+                };
+                start = rect.place(rect.at, inside(rect.u, rng), inside(rect.v, rng));
+            }
+            let mut p = start;
+            let mut put = |p: [i64; 3]| {
+                let [x, y, z] = p.map(|c| c as usize);
+                vol.set(x, y, z, side);
+            };
+            put(p);
+            for step in 0..1 + rng.below(8) {
+                let a = if step == 0 {
+                    rect.axis
+                } else {
+                    rng.below(3) as usize
+                };
+                let to = rng.below(n as u64) as i64;
+                while p[a] != to {
+                    p[a] += (to - p[a]).signum();
+                    put(p);
+                }
+            }
+            for a in 0..3 {
+                while p[a] != start[a] {
+                    p[a] += (start[a] - p[a]).signum();
+                    put(p);
+                }
+            }
+        }
+        vol
+    }
+
+    /// The ring search against [`rings_by_cycles`] on random volumes: every sample of one side
+    /// of 7-sample cubes, random (30% to 70% inside) or threads of that side, the box one
+    /// sample wider, with a random rectangle between the samples as the loop, both sides and
+    /// both connectivities. Samples whose pieces are apart, whose rings all link the loop
+    /// evenly, all oddly, and both ways (where a search that took the first ring it met would
+    /// answer by its order) all come up many times.
+    #[test]
+    fn the_ring_search_answers_as_the_cycles_do() {
+        let mut rng = crate::test_rng::Rng(0x6a09_e667_f3bc_c908);
+        let n = 7usize;
+        let mut seen: std::collections::BTreeMap<String, usize> = Default::default();
+        for round in 0..400 {
+            let side = rng.below(2) == 0;
+            let conn = [Connectivity::Six, Connectivity::TwentySix][rng.below(2) as usize];
+            let six = side == (conn == Connectivity::Six);
+            let rect = Rectangle::random(&mut rng, n as u64);
+            let loop_points = rect.points();
+            let vol = if round % 2 == 0 {
+                let mut vol = MaskVolume::new([n; 3], Frame::identity());
+                let dense = 30 + rng.below(41);
+                for k in 0..n * n * n {
+                    vol.set(k % n, k / n % n, k / (n * n), rng.below(100) < dense);
+                }
+                vol
+            } else {
+                threads(&mut rng, n, side, &rect)
+            };
+            let target = PeelTarget {
+                loop_points: &loop_points,
+                lo: [-1; 3],
+                hi: [n as i64; 3],
+            };
+            let mut ring = Ring::new(&target, side, conn);
+            for k in 0..n * n * n {
+                let q = [k % n, k / n % n, k / (n * n)].map(|x| x as i64);
+                if vol.get(q[0], q[1], q[2]) != side {
+                    continue;
+                }
+                let rings =
+                    rings_by_cycles(&vol, side, six, q, (target.lo, target.hi), &loop_points);
+                assert_eq!(
+                    ring.cuts(&vol, q),
+                    rings == Rings::Odd,
+                    "round {round}, {q:?}: {rings:?}"
+                );
+                *seen.entry(format!("{rings:?}")).or_insert(0) += 1;
+            }
+        }
+        assert!(
+            ["Apart", "Even", "Odd", "Both"]
+                .iter()
+                .all(|k| seen.get(*k).is_some_and(|&n| n > 150)),
+            "{seen:?}"
+        );
     }
 
     /// A loop that does not go round the bar (beside it) links no ring: no wall.
