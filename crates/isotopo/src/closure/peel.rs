@@ -863,6 +863,40 @@ mod tests {
         );
     }
 
+    /// A ring search labels at most [`MAX_RING_BOX`] samples: a thread ring, one sample thick,
+    /// cut at a sample of its bar that the loop goes round, in a box of exactly that many
+    /// samples, and in one a plane longer (then the sample is not searched, and not cut).
+    #[test]
+    fn the_ring_search_stops_at_its_box_limit() {
+        let mut vol = MaskVolume::new([10, 10, 6], Frame::identity());
+        for (x, y) in (1..=8).flat_map(|x| (1..=8).map(move |y| (x, y))) {
+            if x == 1 || x == 8 || y == 1 || y == 8 {
+                vol.set(x, y, 3, true);
+            }
+        }
+        let pts = [
+            [4.0, 0.5, 3.0],
+            [4.0, 1.0, 3.5],
+            [4.0, 1.5, 3.0],
+            [4.0, 1.0, 2.5],
+        ];
+        let (lo, size) = ([-1i64; 3], [256, 128, 128]);
+        assert_eq!(size.iter().product::<i64>(), MAX_RING_BOX as i64);
+        for more in [0, 1] {
+            let target = PeelTarget {
+                loop_points: &pts,
+                lo,
+                hi: [
+                    lo[0] + size[0] - 1 + more,
+                    lo[1] + size[1] - 1,
+                    lo[2] + size[2] - 1,
+                ],
+            };
+            let mut ring = Ring::new(&target, true, Connectivity::Six);
+            assert_eq!(ring.cuts(&vol, [4, 1, 3]), more == 0, "{more} plane more");
+        }
+    }
+
     /// A loop that does not go round the bar (beside it) links no ring: no wall.
     #[test]
     fn a_cut_must_link_the_loop() {
