@@ -20,13 +20,13 @@ pub(crate) const FACES: [[i64; 3]; 6] = [
 /// The 26 neighbours of a sample, and for each its adjacencies within the neighbourhood.
 pub(crate) struct Neighbourhood {
     pub(crate) offsets: [[i64; 3]; 26],
-    /// Face neighbours (6-adjacent to the centre).
-    pub(crate) face: [bool; 26],
-    /// In the 18-neighbourhood (not a corner).
-    pub(crate) in18: [bool; 26],
     /// Neighbours k, j that are 6-adjacent / 26-adjacent to each other: bit `j` of `adj6[k]`.
     adj6: [u32; 26],
     adj26: [u32; 26],
+    /// Face neighbours (6-adjacent to the centre), and those of the 18-neighbourhood (not a
+    /// corner): bit `k` for neighbour `k`.
+    face: u32,
+    in18: u32,
 }
 
 pub(crate) fn neighbourhood() -> &'static Neighbourhood {
@@ -45,8 +45,8 @@ pub(crate) fn neighbourhood() -> &'static Neighbourhood {
             }
         }
         let l1 = |d: [i64; 3]| d[0].abs() + d[1].abs() + d[2].abs();
-        let face = std::array::from_fn(|k| l1(offsets[k]) == 1);
-        let in18 = std::array::from_fn(|k| l1(offsets[k]) <= 2);
+        let face: [bool; 26] = std::array::from_fn(|k| l1(offsets[k]) == 1);
+        let in18: [bool; 26] = std::array::from_fn(|k| l1(offsets[k]) <= 2);
         let adj = |six: bool| -> [u32; 26] {
             std::array::from_fn(|k| {
                 (0..26).fold(0, |bits, j| {
@@ -59,18 +59,27 @@ pub(crate) fn neighbourhood() -> &'static Neighbourhood {
         };
         Neighbourhood {
             offsets,
-            face,
-            in18,
             adj6: adj(true),
             adj26: adj(false),
+            face: bits_of(&face),
+            in18: bits_of(&in18),
         }
     })
 }
 
-/// Components of the samples `member` of the neighbourhood: with 6-adjacency, those of the
-/// 18-neighbourhood that touch a face neighbour (the geodesic count); with 26, all.
-fn components(member: &[bool; 26], six: bool) -> usize {
-    label_pieces(member, six, |_, _| {})
+/// The neighbours flagged, as bit `k` for neighbour `k`.
+fn bits_of(flags: &[bool; 26]) -> u32 {
+    (0..26).fold(0, |m, k| m | u32::from(flags[k]) << k)
+}
+
+/// All 26 neighbours' bits.
+const ALL: u32 = (1 << 26) - 1;
+
+/// Components of the samples `member` of the neighbourhood (bit `k` for neighbour `k`): with
+/// 6-adjacency, those of the 18-neighbourhood that touch a face neighbour (the geodesic count);
+/// with 26, all.
+fn components(member: u32, six: bool) -> usize {
+    pieces_of(member, six, |_, _| {})
 }
 
 /// Walks the components counted by [`components`], calling `each(piece, k)` for every neighbour
@@ -79,16 +88,16 @@ fn components(member: &[bool; 26], six: bool) -> usize {
 pub(crate) fn label_pieces(
     member: &[bool; 26],
     six: bool,
-    mut each: impl FnMut(usize, usize),
+    each: impl FnMut(usize, usize),
 ) -> usize {
+    pieces_of(bits_of(member), six, each)
+}
+
+/// [`label_pieces`] of the neighbours whose bits are set in `member`.
+fn pieces_of(member: u32, six: bool, mut each: impl FnMut(usize, usize)) -> usize {
     let nb = neighbourhood();
-    let of = |pick: &dyn Fn(usize) -> bool| (0..26).fold(0u32, |m, k| m | u32::from(pick(k)) << k);
-    let allowed = of(&|k| member[k] && (!six || nb.in18[k]));
-    let mut starts = if six {
-        allowed & of(&|k| nb.face[k])
-    } else {
-        allowed
-    };
+    let allowed = if six { member & nb.in18 } else { member };
+    let mut starts = if six { allowed & nb.face } else { allowed };
     let adj = if six { &nb.adj6 } else { &nb.adj26 };
     let mut count = 0;
     while starts != 0 {
@@ -121,16 +130,15 @@ pub(crate) fn topological_numbers(
     conn: Connectivity,
 ) -> (usize, usize) {
     let nb = neighbourhood();
-    let mut inside = [false; 26];
+    let mut inside = 0u32;
     for (k, d) in nb.offsets.iter().enumerate() {
         let r = super::shift(q, *d);
-        inside[k] = vol.get(r[0], r[1], r[2]);
+        inside |= u32::from(vol.get(r[0], r[1], r[2])) << k;
     }
-    let outside: [bool; 26] = std::array::from_fn(|k| !inside[k]);
     let six_inside = conn == Connectivity::Six;
     (
-        components(&inside, six_inside),
-        components(&outside, !six_inside),
+        components(inside, six_inside),
+        components(!inside & ALL, !six_inside),
     )
 }
 
