@@ -287,7 +287,7 @@ pub(crate) fn flip_simple(
     cand: &[[i64; 3]],
     to: bool,
 ) -> Vec<[i64; 3]> {
-    let index: FastMap<[i64; 3], usize> = cand.iter().enumerate().map(|(i, &q)| (q, i)).collect();
+    let index = Places::new(cand);
     let mut flipped: Vec<[i64; 3]> = Vec::new();
     let mut done = vec![false; cand.len()];
     let mut dirty = vec![true; cand.len()];
@@ -313,10 +313,58 @@ pub(crate) fn flip_simple(
 }
 
 /// Marks the samples of `index` next to `q` as to be looked at again.
-fn mark_neighbours(index: &FastMap<[i64; 3], usize>, q: [i64; 3], dirty: &mut [bool]) {
+fn mark_neighbours(index: &Places, q: [i64; 3], dirty: &mut [bool]) {
     for d in neighbourhood().offsets {
-        if let Some(&j) = index.get(&shift(q, d)) {
+        if let Some(j) = index.get(shift(q, d)) {
             dirty[j] = true;
+        }
+    }
+}
+
+/// Where each sample of a list is in it: by an array over the list's box where the box is not
+/// much larger than the list (a hash map, looked up 26 times a flip, cost as much as the
+/// flips' tests), else by a hash map (the walls of a whole volume, trimmed at once).
+enum Places {
+    Array { cells: BoxCells, at: Vec<u32> },
+    Map(FastMap<[i64; 3], usize>),
+}
+
+/// Box samples per listed sample (beyond a first 64 Ki) an array of places may spend.
+const PLACES_PER_SAMPLE: usize = 32;
+
+impl Places {
+    fn new(list: &[[i64; 3]]) -> Places {
+        let Some(&first) = list.first() else {
+            return Places::Map(FastMap::default());
+        };
+        let (mut lo, mut hi) = (first, first);
+        for q in list {
+            lo = std::array::from_fn(|k| lo[k].min(q[k]));
+            hi = std::array::from_fn(|k| hi[k].max(q[k]));
+        }
+        let span: [u64; 3] = std::array::from_fn(|k| hi[k].abs_diff(lo[k]) + 1);
+        let most = (PLACES_PER_SAMPLE * list.len() + (1 << 16)) as u64;
+        if span[0].saturating_mul(span[1]).saturating_mul(span[2]) > most {
+            return Places::Map(list.iter().enumerate().map(|(i, &q)| (q, i)).collect());
+        }
+        let cells = BoxCells::new(lo, hi);
+        let mut at = vec![u32::MAX; cells.len()];
+        for (i, &q) in list.iter().enumerate() {
+            if let Some(c) = cells.index(q) {
+                at[c] = i as u32;
+            }
+        }
+        Places::Array { cells, at }
+    }
+
+    /// The place of `q` in the list (its last, if it is there more than once).
+    fn get(&self, q: [i64; 3]) -> Option<usize> {
+        match self {
+            Places::Array { cells, at } => {
+                let c = cells.index(q)?;
+                (at[c] != u32::MAX).then_some(at[c] as usize)
+            }
+            Places::Map(map) => map.get(&q).copied(),
         }
     }
 }
@@ -382,6 +430,36 @@ mod tests {
             flipped += got.len();
         }
         assert!(flipped > 500, "{flipped} flipped");
+    }
+
+    /// A list's places, by array (a compact list) or by hash map (a list spread far), are
+    /// those of the list: for every sample in and round its box, the last place it has in it,
+    /// or none. Random lists with repeats.
+    #[test]
+    fn places_are_where_the_list_has_them() {
+        let mut rng = crate::test_rng::Rng(0x3c6e_f372_fe94_f82b);
+        let mut arrays = 0;
+        for round in 0..60 {
+            let reach = if round % 3 == 0 { 200_000 } else { 6 };
+            let list: Vec<[i64; 3]> = (0..rng.below(40))
+                .map(|_| [0; 3].map(|_| rng.below(2 * reach) as i64 - reach as i64))
+                .collect();
+            let list: Vec<[i64; 3]> = list
+                .iter()
+                .chain(&list[..list.len() / 4])
+                .copied()
+                .collect();
+            let places = Places::new(&list);
+            arrays += usize::from(matches!(places, Places::Array { .. }));
+            let last = |q: [i64; 3]| list.iter().rposition(|&p| p == q);
+            let near = list
+                .iter()
+                .flat_map(|&p| neighbourhood().offsets.map(|d| shift(p, d)));
+            for q in list.iter().copied().chain(near) {
+                assert_eq!(places.get(q), last(q), "{q:?} in {list:?}");
+            }
+        }
+        assert!((20..60).contains(&arrays), "{arrays} by array");
     }
 
     #[test]
