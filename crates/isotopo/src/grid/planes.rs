@@ -428,6 +428,28 @@ impl MaskVolume {
         self.plane(w).get(u as isize, v as isize)
     }
 
+    /// The 3 × 3 × 3 samples round `q`, which must lie in the volume, as bits: bit
+    /// `9 (dz + 1) + 3 (dy + 1) + dx + 1` for the sample at `q + (dx, dy, dz)` (nine row reads
+    /// where 27 `get`s each found their plane and word).
+    pub fn block(&self, q: [i64; 3]) -> u32 {
+        debug_assert!(self.contains(q));
+        let mut bits = 0u32;
+        for dz in 0..3 {
+            let plane = self.plane(q[2] + dz - 1);
+            for dy in 0..3 {
+                // Padded row q.y + dy, padded columns q.x ..= q.x + 2 (samples x - 1 ..= x + 1).
+                let row = plane.row((q[1] + dy) as usize);
+                let (i, s) = (q[0] as usize / 64, q[0] as usize % 64);
+                let mut three = row[i] >> s;
+                if s > 61 {
+                    three |= row[i + 1] << (64 - s);
+                }
+                bits |= ((three & 7) as u32) << (9 * dz + 3 * dy);
+            }
+        }
+        bits
+    }
+
     #[inline]
     /// Sets the sample at local (u, v, w) inside or outside.
     pub fn set(&mut self, u: usize, v: usize, w: usize, inside: bool) {

@@ -121,6 +121,20 @@ fn pieces_of(member: u32, six: bool, mut each: impl FnMut(usize, usize)) -> usiz
     count
 }
 
+/// The inside samples of the 26-neighbourhood of `q` (bit `k` for neighbour `k`).
+fn neighbours(vol: &MaskVolume, q: [i64; 3]) -> u32 {
+    if vol.contains(q) {
+        // The neighbours are numbered as the block's bits, less the centre's (bit 13).
+        let block = vol.block(q);
+        return block & ((1 << 13) - 1) | (block >> 14) << 13;
+    }
+    let nb = neighbourhood();
+    (0..26).fold(0, |m, k| {
+        let r = super::shift(q, nb.offsets[k]);
+        m | u32::from(vol.get(r[0], r[1], r[2])) << k
+    })
+}
+
 /// The topological numbers of sample `q`: the pieces of the inside and of the outside in its
 /// neighbourhood that touch it (each with its own adjacency). Flipping `q` changes no topology
 /// exactly when both are 1.
@@ -129,12 +143,7 @@ pub(crate) fn topological_numbers(
     q: [i64; 3],
     conn: Connectivity,
 ) -> (usize, usize) {
-    let nb = neighbourhood();
-    let mut inside = 0u32;
-    for (k, d) in nb.offsets.iter().enumerate() {
-        let r = super::shift(q, *d);
-        inside |= u32::from(vol.get(r[0], r[1], r[2])) << k;
-    }
+    let inside = neighbours(vol, q);
     let six_inside = conn == Connectivity::Six;
     (
         components(inside, six_inside),
@@ -554,7 +563,7 @@ fn euler_at_corner() -> &'static [i64; 256] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Frame;
+    use crate::grid::{shift, Frame};
 
     const BOTH: [Connectivity; 2] = [Connectivity::Six, Connectivity::TwentySix];
 
@@ -572,6 +581,30 @@ mod tests {
         let lo = std::array::from_fn(|c| flips.iter().map(|p| p[c]).min().unwrap());
         let hi = std::array::from_fn(|c| flips.iter().map(|p| p[c]).max().unwrap());
         SetTest::new(vol, lo, hi, conn).keeps(flips)
+    }
+
+    /// A sample's neighbours read as a block of rows are those read one by one: every sample
+    /// of random volumes 130 samples wide (its rows span three words, and blocks straddle
+    /// them), and samples just outside the volume (read one by one).
+    #[test]
+    fn neighbours_read_by_rows_are_those_read_one_by_one() {
+        let mut rng = crate::test_rng::Rng(0xa54f_f53a_5f1d_36f1);
+        let dims = [130, 4, 3];
+        for _ in 0..4 {
+            let mut vol = MaskVolume::new(dims, Frame::identity());
+            for k in 0..dims.iter().product::<usize>() {
+                vol.set(k % 130, k / 130 % 4, k / 520, rng.below(2) == 1);
+            }
+            let nb = neighbourhood();
+            for k in 0..132 * 6 * 5 {
+                let q = [k % 132, k / 132 % 6, k / 792].map(|x| x as i64 - 1);
+                let one_by_one = (0..26).fold(0, |m, j| {
+                    let r = shift(q, nb.offsets[j]);
+                    m | u32::from(vol.get(r[0], r[1], r[2])) << j
+                });
+                assert_eq!(neighbours(&vol, q), one_by_one, "{q:?}");
+            }
+        }
     }
 
     /// A plate one sample thick with a hole (a handle under either connectivity): sealing the
