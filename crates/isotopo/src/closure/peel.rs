@@ -180,11 +180,12 @@ impl Ring {
         self.cells.sample(c)
     }
 
-    /// Does the step between two samples pass through the loop's curtain an odd number of
-    /// times? (1 if so.)
-    fn parity(&self, p: [i64; 3], r: [i64; 3]) -> usize {
+    /// For the steps from `p`: does the step to `r` pass through the loop's curtain an odd
+    /// number of times? (1 if so.)
+    fn parities_from(overpass: &Overpass, p: [i64; 3]) -> impl Fn([i64; 3]) -> usize + '_ {
         let at = |p: [i64; 3]| p.map(|x| x as f64);
-        (self.overpass.over(at(p), at(r)) & 1) as usize
+        let from = overpass.from(at(p));
+        move |r| (from.to(at(r)) & 1) as usize
     }
 
     /// Does flipping `q` cut the rings of the side that the loop goes round, and only those (see
@@ -219,10 +220,11 @@ impl Ring {
             std::collections::VecDeque::new(),
         ];
         let mut starts: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
+        let parity = Self::parities_from(&self.overpass, q);
         for k in 0..26 {
             let r = shift(q, nb.offsets[k]);
             if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(r)) {
-                let state = 2 * c + self.parity(q, r);
+                let state = 2 * c + parity(r);
                 self.stamp[state] = stamps[p];
                 fronts[p].push_back(state);
                 starts[p].push(c);
@@ -238,6 +240,7 @@ impl Ring {
                 });
             };
             let p = self.sample(state / 2);
+            let parity = Self::parities_from(&self.overpass, p);
             for d in steps {
                 let r = shift(p, *d);
                 let Some(rc) = self.cell(r).filter(|&rc| rc != qc) else {
@@ -246,7 +249,7 @@ impl Ring {
                 if vol.get(r[0], r[1], r[2]) != self.side {
                     continue;
                 }
-                let next = 2 * rc + ((state & 1) ^ self.parity(p, r));
+                let next = 2 * rc + ((state & 1) ^ parity(r));
                 if self.stamp[next] == stamps[1 - i] {
                     // A ring through q with as many crossings from both ends: even.
                     return false;

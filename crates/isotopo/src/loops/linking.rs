@@ -153,36 +153,62 @@ impl Overpass {
 
     /// The signed count of crossings where the segment `p q` passes over the polygon.
     pub fn over(&self, p: [f64; 3], q: [f64; 3]) -> i64 {
-        let (a1, a2) = (seen(p), seen(q));
-        if self.picture.misses(a1, a2) {
-            return 0;
-        }
+        self.from(p).to(q)
+    }
+
+    /// The segments from `p`, for many of them: the edges filed under its cell, looked up once.
+    pub fn from(&self, p: [f64; 3]) -> SegmentsFrom<'_> {
+        let a1 = seen(p);
         let cell = |v: f64, k: usize| {
             let c = ((v - self.corner[k]) / self.side).floor();
             (c >= 0.0 && c < self.size[k] as f64).then_some(c as usize)
         };
-        let short = (a2.x - a1.x).abs() <= Self::REACH && (a2.y - a1.y).abs() <= Self::REACH;
-        let filed = match (short, cell(a1.x, 0), cell(a1.y, 1)) {
-            (true, Some(i), Some(j)) => {
-                let c = j * self.size[0] + i;
-                &self.filed[self.first[c] as usize..self.first[c + 1] as usize]
-            }
-            // Long or outside the grid (it cannot be, and still meet the box): every edge.
-            _ => {
-                return self
-                    .edges
-                    .iter()
-                    .map(|&(b1, b2)| over_crossing(a1, a2, b1, b2))
-                    .sum()
-            }
-        };
-        filed
-            .iter()
-            .map(|&e| {
-                let (b1, b2) = self.edges[e as usize];
-                over_crossing(a1, a2, b1, b2)
-            })
-            .sum()
+        // Outside the grid (it cannot be, and a short segment from it still meet the box):
+        // every edge.
+        let filed = cell(a1.x, 0).zip(cell(a1.y, 1)).map(|(i, j)| {
+            let c = j * self.size[0] + i;
+            &self.filed[self.first[c] as usize..self.first[c + 1] as usize]
+        });
+        SegmentsFrom {
+            overpass: self,
+            a1,
+            filed,
+        }
+    }
+}
+
+/// Segments from one point across an [`Overpass`] (see [`Overpass::from`]).
+pub struct SegmentsFrom<'a> {
+    overpass: &'a Overpass,
+    a1: Seen,
+    filed: Option<&'a [u32]>,
+}
+
+impl SegmentsFrom<'_> {
+    /// The signed count of crossings where the segment from the point to `q` passes over the
+    /// polygon.
+    pub fn to(&self, q: [f64; 3]) -> i64 {
+        let (o, a1, a2) = (self.overpass, self.a1, seen(q));
+        if o.picture.misses(a1, a2) {
+            return 0;
+        }
+        let short =
+            (a2.x - a1.x).abs() <= Overpass::REACH && (a2.y - a1.y).abs() <= Overpass::REACH;
+        match self.filed {
+            Some(filed) if short => filed
+                .iter()
+                .map(|&e| {
+                    let (b1, b2) = o.edges[e as usize];
+                    over_crossing(a1, a2, b1, b2)
+                })
+                .sum(),
+            // Long, or from outside the grid: every edge.
+            _ => o
+                .edges
+                .iter()
+                .map(|&(b1, b2)| over_crossing(a1, a2, b1, b2))
+                .sum(),
+        }
     }
 }
 
