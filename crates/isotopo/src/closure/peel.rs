@@ -25,11 +25,12 @@
 //! cannot fail. It is still verified by [`super::close`] like any other wall.
 
 use super::Operation;
-use crate::grid::simple::{label_pieces, neighbourhood, topological_numbers, FACES};
+use crate::grid::simple::{label_side_pieces, neighbourhood, topological_numbers, FACES};
 use crate::grid::{shift, BoxCells, MaskVolume};
 use crate::loops::Overpass;
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
+use crate::volume::BBox;
 
 /// The loop a peeled wall closes, and the box within which the ring it goes round is looked
 /// for.
@@ -207,12 +208,8 @@ impl Ring {
         self.generation += 2;
         let stamps = [self.generation, self.generation + 1];
         let nb = neighbourhood();
-        let member: [bool; 26] = std::array::from_fn(|k| {
-            let r = shift(q, nb.offsets[k]);
-            vol.get(r[0], r[1], r[2]) == self.side
-        });
         let mut piece = [usize::MAX; 26];
-        if label_pieces(&member, self.six, |p, k| piece[k] = p) != 2 {
+        if label_side_pieces(vol, q, self.side, self.six, |p, k| piece[k] = p) != 2 {
             return false;
         }
         let mut fronts = [
@@ -337,14 +334,14 @@ const PLACES_PER_SAMPLE: usize = 32;
 
 impl Places {
     fn new(list: &[[i64; 3]]) -> Places {
-        let Some(&first) = list.first() else {
+        if list.is_empty() {
             return Places::Map(FastMap::default());
-        };
-        let (mut lo, mut hi) = (first, first);
-        for q in list {
-            lo = std::array::from_fn(|k| lo[k].min(q[k]));
-            hi = std::array::from_fn(|k| hi[k].max(q[k]));
         }
+        let mut b = BBox::EMPTY;
+        for &q in list {
+            b.include(q);
+        }
+        let (lo, hi) = (b.min, b.max);
         let span: [u64; 3] = std::array::from_fn(|k| hi[k].abs_diff(lo[k]) + 1);
         let most = (PLACES_PER_SAMPLE * list.len() + (1 << 16)) as u64;
         if span[0].saturating_mul(span[1]).saturating_mul(span[2]) > most {
@@ -375,6 +372,7 @@ impl Places {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::simple::label_pieces;
     use crate::grid::Frame;
     use crate::loops::linking_number;
 

@@ -121,6 +121,19 @@ fn pieces_of(member: u32, six: bool, mut each: impl FnMut(usize, usize)) -> usiz
     count
 }
 
+/// [`label_pieces`] of the neighbours of `q` on `side` (read as [`topological_numbers`] reads
+/// them).
+pub(crate) fn label_side_pieces(
+    vol: &MaskVolume,
+    q: [i64; 3],
+    side: bool,
+    six: bool,
+    each: impl FnMut(usize, usize),
+) -> usize {
+    let inside = neighbours(vol, q);
+    pieces_of(if side { inside } else { !inside & ALL }, six, each)
+}
+
 /// The inside samples of the 26-neighbourhood of `q` (bit `k` for neighbour `k`).
 fn neighbours(vol: &MaskVolume, q: [i64; 3]) -> u32 {
     if vol.contains(q) {

@@ -124,8 +124,7 @@ impl Overpass {
         for (e, (b1, b2)) in edges.iter().enumerate() {
             let range = |lo: f64, hi: f64, k: usize| {
                 let cell = |v: f64| ((v - corner[k]) / side).floor().max(0.0) as usize;
-                cell(lo - Self::REACH) - usize::from(cell(lo - Self::REACH) > 0)
-                    ..=cell(hi + Self::REACH).min(size[k] - 1)
+                cell(lo - Self::REACH).saturating_sub(1)..=cell(hi + Self::REACH).min(size[k] - 1)
             };
             for j in range(b1.y.min(b2.y), b1.y.max(b2.y), 1) {
                 for i in range(b1.x.min(b2.x), b1.x.max(b2.x), 0) {
