@@ -27,7 +27,7 @@
 use super::Operation;
 use crate::grid::simple::{label_side_pieces, neighbourhood, topological_numbers, FACES};
 use crate::grid::{shift, BoxCells, MaskVolume};
-use crate::loops::Overpass;
+use crate::loops::{Overpass, SegmentsFrom};
 use crate::surface::search::FastMap;
 use crate::topology::cases::Connectivity;
 use crate::volume::BBox;
@@ -150,6 +150,13 @@ struct Ring {
     /// Per box cell and parity (`2 * cell + parity`): the search, and the front, that reached it.
     stamp: Vec<u32>,
     generation: u32,
+    /// Per box cell, the parities of the steps from it already counted (they depend on the
+    /// loop only, so the searches from the region's many candidates share them): bit `k` says
+    /// the step to neighbour `k` is known, bit `32 + k` that it passes through the curtain an
+    /// odd number of times.
+    known: Vec<u64>,
+    /// The steps between samples of the side, with their neighbour numbers.
+    steps: Vec<(usize, [i64; 3])>,
 }
 
 /// Moved by this off the grid (the loop, the other way), no step of a search meets the loop.
@@ -162,14 +169,20 @@ impl Ring {
             .iter()
             .map(|p| std::array::from_fn(|k| p[k] - NUDGE[k]))
             .collect();
+        // Inside samples are 6-adjacent with connectivity 6, outside ones with 26.
+        let six = side == (conn == Connectivity::Six);
         Ring {
             overpass: Overpass::new(&moved),
             side,
-            // Inside samples are 6-adjacent with connectivity 6, outside ones with 26.
-            six: side == (conn == Connectivity::Six),
+            six,
             cells: BoxCells::new(target.lo, target.hi),
             stamp: Vec::new(),
             generation: 0,
+            known: Vec::new(),
+            steps: (0..26)
+                .map(|k| (k, neighbourhood().offsets[k]))
+                .filter(|(_, d)| !six || FACES.contains(d))
+                .collect(),
         }
     }
 
@@ -177,16 +190,22 @@ impl Ring {
         self.cells.index(q)
     }
 
-    fn sample(&self, c: usize) -> [i64; 3] {
-        self.cells.sample(c)
-    }
-
-    /// For the steps from `p`: does the step to `r` pass through the loop's curtain an odd
-    /// number of times? (1 if so.)
-    fn parities_from(overpass: &Overpass, p: [i64; 3]) -> impl Fn([i64; 3]) -> usize + '_ {
-        let at = |p: [i64; 3]| p.map(|x| x as f64);
-        let from = overpass.from(at(p));
-        move |r| (from.to(at(r)) & 1) as usize
+    /// Does the step from `p` (box cell `c`) to its neighbour `k` pass through the loop's
+    /// curtain an odd number of times? (1 if so.) Counted once per step, the edges filed near
+    /// `p` looked up once for all its steps (`from`).
+    fn parity<'o>(
+        (overpass, known): (&'o Overpass, &mut [u64]),
+        from: &mut Option<SegmentsFrom<'o>>,
+        (p, c): ([i64; 3], usize),
+        k: usize,
+    ) -> usize {
+        if known[c] >> k & 1 == 0 {
+            let at = |p: [i64; 3]| p.map(|x| x as f64);
+            let from = from.get_or_insert_with(|| overpass.from(at(p)));
+            let odd = from.to(at(shift(p, neighbourhood().offsets[k]))) & 1;
+            known[c] |= 1 << k | (odd as u64) << (32 + k);
+        }
+        (known[c] >> (32 + k) & 1) as usize
     }
 
     /// Does flipping `q` cut the rings of the side that the loop goes round, and only those (see
@@ -203,6 +222,7 @@ impl Ring {
         }
         if self.stamp.len() < 2 * cells {
             self.stamp = vec![0; 2 * cells];
+            self.known = vec![0; cells];
         }
         // Two stamps per search: reached from piece 0, from piece 1.
         self.generation += 2;
@@ -217,42 +237,51 @@ impl Ring {
             std::collections::VecDeque::new(),
         ];
         let mut starts: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
-        let parity = Self::parities_from(&self.overpass, q);
+        let Ring {
+            overpass,
+            known,
+            stamp,
+            cells,
+            steps,
+            side,
+            ..
+        } = self;
+        let mut from = None;
         for k in 0..26 {
             let r = shift(q, nb.offsets[k]);
-            if let (p @ (0 | 1), Some(c)) = (piece[k], self.cell(r)) {
-                let state = 2 * c + parity(r);
-                self.stamp[state] = stamps[p];
+            if let (p @ (0 | 1), Some(c)) = (piece[k], cells.index(r)) {
+                let state = 2 * c + Self::parity((overpass, known), &mut from, (q, qc), k);
+                stamp[state] = stamps[p];
                 fronts[p].push_back(state);
                 starts[p].push(c);
             }
         }
-        let steps: &[[i64; 3]] = if self.six { &FACES } else { &nb.offsets };
         loop {
             let i = usize::from(fronts[1].len() < fronts[0].len());
             let Some(state) = fronts[i].pop_front() else {
                 // All reached from piece i: the other piece, with the other parity, or not.
-                return starts[1 - i].iter().any(|&c| {
-                    self.stamp[2 * c] == stamps[i] || self.stamp[2 * c + 1] == stamps[i]
-                });
+                return starts[1 - i]
+                    .iter()
+                    .any(|&c| stamp[2 * c] == stamps[i] || stamp[2 * c + 1] == stamps[i]);
             };
-            let p = self.sample(state / 2);
-            let parity = Self::parities_from(&self.overpass, p);
-            for d in steps {
-                let r = shift(p, *d);
-                let Some(rc) = self.cell(r).filter(|&rc| rc != qc) else {
+            let (pc, mut from) = (state / 2, None);
+            let p = cells.sample(pc);
+            for &(k, d) in steps.iter() {
+                let r = shift(p, d);
+                let Some(rc) = cells.index(r).filter(|&rc| rc != qc) else {
                     continue;
                 };
-                if vol.get(r[0], r[1], r[2]) != self.side {
+                if vol.get(r[0], r[1], r[2]) != *side {
                     continue;
                 }
-                let next = 2 * rc + ((state & 1) ^ parity(r));
-                if self.stamp[next] == stamps[1 - i] {
+                let odd = Self::parity((overpass, known), &mut from, (p, pc), k);
+                let next = 2 * rc + ((state & 1) ^ odd);
+                if stamp[next] == stamps[1 - i] {
                     // A ring through q with as many crossings from both ends: even.
                     return false;
                 }
-                if self.stamp[next] != stamps[i] {
-                    self.stamp[next] = stamps[i];
+                if stamp[next] != stamps[i] {
+                    stamp[next] = stamps[i];
                     fronts[i].push_back(next);
                 }
             }

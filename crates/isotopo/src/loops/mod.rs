@@ -15,7 +15,7 @@
 pub mod basis;
 mod linking;
 
-pub use linking::{linking_number, Overpass};
+pub use linking::{linking_number, Overpass, SegmentsFrom};
 
 use crate::error::Result;
 use crate::grid::{Frame, MaskVolume};
