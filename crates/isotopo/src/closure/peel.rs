@@ -25,7 +25,9 @@
 //! cannot fail. It is still verified by [`super::close`] like any other wall.
 
 use super::Operation;
-use crate::grid::simple::{label_side_pieces, neighbourhood, topological_numbers, FACES};
+use crate::grid::simple::{
+    is_simple, label_side_pieces, neighbourhood, topological_numbers, FACES,
+};
 use crate::grid::{shift, BoxCells, MaskVolume};
 use crate::loops::{Overpass, SegmentsFrom};
 use crate::surface::search::FastMap;
@@ -327,7 +329,7 @@ pub(crate) fn flip_simple(
                 continue;
             }
             dirty[i] = false;
-            if topological_numbers(vol, q, conn) == (1, 1) {
+            if is_simple(vol, q, conn) {
                 vol.set(q[0] as usize, q[1] as usize, q[2] as usize, to);
                 flipped.push(q);
                 done[i] = true;

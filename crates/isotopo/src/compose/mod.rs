@@ -56,7 +56,7 @@
 //! well-composed set of its size can hold: no step can mend all of it.)
 
 use crate::error::Result;
-use crate::grid::simple::{same_piece, topological_numbers, SetTest};
+use crate::grid::simple::{is_simple, same_piece, topological_numbers, SetTest};
 use crate::grid::{shift, BoxCells, MaskVolume};
 use crate::progress::Progress;
 use crate::surface::search::FastMap;
@@ -480,7 +480,7 @@ impl Mender {
     fn simple(&self, vol: &MaskVolume, p: [i64; 3]) -> bool {
         self.only
             .is_none_or(|side| vol.get(p[0], p[1], p[2]) != side)
-            && topological_numbers(vol, p, self.conn) == (1, 1)
+            && is_simple(vol, p, self.conn)
     }
 
     /// The corner of `cell` whose flip is simple and lowers the critical cells around it the

@@ -164,6 +164,21 @@ pub(crate) fn topological_numbers(
     )
 }
 
+/// Whether flipping sample `q` changes no topology: [`topological_numbers`] both 1. The side
+/// with fewer samples round `q` is labelled first, and the other only if that gave one piece:
+/// a sample with none of the other side round it (inside a thick region being thinned) is
+/// answered without labelling its own side.
+pub(crate) fn is_simple(vol: &MaskVolume, q: [i64; 3], conn: Connectivity) -> bool {
+    let inside = neighbours(vol, q);
+    let outside = !inside & ALL;
+    let six_inside = conn == Connectivity::Six;
+    let ((a, six_a), (b, six_b)) = match inside.count_ones() <= outside.count_ones() {
+        true => ((inside, six_inside), (outside, !six_inside)),
+        false => ((outside, !six_inside), (inside, six_inside)),
+    };
+    components(a, six_a) == 1 && components(b, six_b) == 1
+}
+
 /// Whether the face neighbours `a` and `b` of sample `q` lie in one piece of `side` within its
 /// neighbourhood (6-adjacent pieces in the 18-neighbourhood: `side` is the 6-connected side).
 pub(crate) fn same_piece(
@@ -749,6 +764,31 @@ mod tests {
             accepted > 300 && refused > 300,
             "{accepted} accepted, {refused} refused"
         );
+    }
+
+    /// The short-cut simplicity test answers as the topological numbers do, for every sample of
+    /// random masks from sparse to dense (interior samples of both sides, and the padding round
+    /// the volume), both connectivities.
+    #[test]
+    fn is_simple_answers_as_the_topological_numbers_do() {
+        let mut rng = crate::test_rng::Rng(0xbb67_ae85_84ca_a73b);
+        let (mut simple, mut not) = (0, 0);
+        for round in 0..40 {
+            let n = 9;
+            let percent = [5, 30, 50, 70, 95][round % 5];
+            let vol = crate::grid::random_mask(&mut rng, n, percent);
+            let conn = BOTH[round % 2];
+            for z in -1..=n as i64 {
+                for y in -1..=n as i64 {
+                    for x in -1..=n as i64 {
+                        let want = topological_numbers(&vol, [x, y, z], conn) == (1, 1);
+                        assert_eq!(is_simple(&vol, [x, y, z], conn), want, "{x} {y} {z}");
+                        (simple, not) = (simple + usize::from(want), not + usize::from(!want));
+                    }
+                }
+            }
+        }
+        assert!(simple > 5_000 && not > 5_000, "{simple} simple, {not} not");
     }
 
     /// On random volumes: every simple flip (Bertrand and Malandain's numbers, an independent
