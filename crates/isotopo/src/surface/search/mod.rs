@@ -173,6 +173,10 @@ const UNRESOLVED: u32 = u32::MAX - 1;
 /// Marks a vertex that is not on the surface.
 const ABSENT: u32 = u32::MAX;
 
+/// Which search reached a vertex (see [`Graph::last_search`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SearchMark(u32);
+
 /// How a reachability search ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Reach {
@@ -291,6 +295,60 @@ impl<'a> Graph<'a> {
         };
         let left = pending.keys().map(|&i| self.vertex(i)).collect();
         (outcome, left)
+    }
+
+    /// The mark of the last [`Graph::reach_targets`] search: [`Graph::meets`] tells whether
+    /// another search steps onto a vertex it reached.
+    pub fn last_search(&self) -> SearchMark {
+        SearchMark(self.scratch.generation)
+    }
+
+    /// Breadth-first search from `seed` within the region until it steps onto a vertex the
+    /// search `met` reached (`Reached`: the two are joined), visiting at most `budget`
+    /// vertices. Searched from both ends, two vertices far apart are found joined when the two
+    /// searches meet half way, where one search from one end goes all the way. The vertices
+    /// `met` reached keep its mark, so several searches may meet it in turn.
+    pub fn meets(
+        &mut self,
+        seed: Vertex,
+        met: SearchMark,
+        region: &dyn Region,
+        budget: usize,
+    ) -> Reach {
+        let Some(s) = self.index(seed) else {
+            return Reach::Exhausted;
+        };
+        let gen = self.scratch.next_generation();
+        if gen <= met.0 {
+            // The stamps wrapped round since `met`: its marks are gone.
+            return Reach::Budget;
+        }
+        self.scratch.next_region();
+        let mut queue = VecDeque::from([s]);
+        self.scratch.ensure(s as usize + 1, 0);
+        if self.scratch.states[s as usize].stamp == met.0 {
+            return Reach::Reached;
+        }
+        self.scratch.states[s as usize].stamp = gen;
+        let mut visited = 0;
+        while let Some(i) = queue.pop_front() {
+            visited += 1;
+            if visited > budget {
+                return Reach::Budget;
+            }
+            for (_, j) in self.steps(region, i) {
+                self.scratch.ensure(self.arena.len() + 1, 0);
+                let stamp = &mut self.scratch.states[j as usize].stamp;
+                if *stamp == met.0 {
+                    return Reach::Reached;
+                }
+                if *stamp != gen {
+                    *stamp = gen;
+                    queue.push_back(j);
+                }
+            }
+        }
+        Reach::Exhausted
     }
 
     /// Number of `v` (computing its neighbourhood the first time), or `None` if no surface
