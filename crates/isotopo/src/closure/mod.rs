@@ -792,6 +792,63 @@ mod tests {
         );
     }
 
+    /// Where the first look everywhere leaves it open (surfaces of thousands of vertices), the
+    /// tubes along a loop decide only "joined", and the check still answers as the whole
+    /// search does: two random halves of a volume kept apart by two empty planes, so that a
+    /// vertex on one half and one on the other lie on two large surfaces; the tube goes round
+    /// the targets.
+    #[test]
+    fn the_tubes_find_only_what_is_joined() {
+        let mut rng = crate::test_rng::Rng(0x1f83_d9ab_fb41_bd6b);
+        let (mut apart, mut joined_by_tube_or_later) = (0, 0);
+        for round in 0..80 {
+            let conn = [Connectivity::Six, Connectivity::TwentySix][round % 2];
+            let n = 24;
+            let mut vol = crate::grid::random_mask(&mut rng, n, 50);
+            for x in [n / 2 - 1, n / 2] {
+                for y in 0..n {
+                    for z in 0..n {
+                        vol.set(x, y, z, false);
+                    }
+                }
+            }
+            let mut g = Graph::new(&vol, cases(conn));
+            let mut on_surface = |rng: &mut crate::test_rng::Rng, left: bool| loop {
+                let half = (n / 2 - 1) as u64;
+                let x = rng.below(half) as i64 + if left { 0 } else { n as i64 / 2 + 1 };
+                let p = [x, rng.below(n as u64) as i64, rng.below(n as u64) as i64];
+                let v = Vertex {
+                    p,
+                    axis: rng.below(3) as u8,
+                };
+                if g.index(v).is_some() {
+                    return v;
+                }
+            };
+            let from = vec![on_surface(&mut rng, true)];
+            let others = vec![on_surface(&mut rng, round % 4 < 2)];
+            let whole = g.reach(&from, &others, None, &Everywhere, usize::MAX) == Reach::Reached;
+            let p = from[0].p;
+            let (lo, hi) = (p.map(|x| x - 1), p.map(|x| x + 1));
+            let near = InBox::cubes(lo, hi);
+            let along = [Tube::thin(&others, lo, hi), Tube::new(&others, lo, hi)];
+            assert_eq!(
+                joined(&mut g, &from, &others, &near, &along),
+                whole,
+                "round {round}"
+            );
+            // Counted where the first look leaves it open: the tubes are searched.
+            if joined_everywhere(&mut g, &from, &others, 1 << 10).is_none() {
+                apart += usize::from(!whole);
+                joined_by_tube_or_later += usize::from(whole);
+            }
+        }
+        assert!(
+            apart > 20 && joined_by_tube_or_later > 5,
+            "{apart} apart, {joined_by_tube_or_later} joined"
+        );
+    }
+
     #[test]
     fn triangle_distance() {
         let (a, b, c) = ([0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]);
