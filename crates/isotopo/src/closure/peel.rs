@@ -500,13 +500,19 @@ mod tests {
     /// those of the list: for every sample in and round its box, the last place it has in it,
     /// or none. Random lists with repeats.
     /// The bits hold what a list of flags holds, and the next member from any place is the
-    /// next flag set (sets of every length round a word's, random sets and clears).
+    /// next flag set (sets of every length round a word's, random sets and clears, dense and
+    /// sparse).
     #[test]
     fn bits_find_the_next_member_as_flags_do() {
         let mut rng = crate::test_rng::Rng(0xa54f_f53a_5f1d_36f1);
-        for n in [0, 1, 63, 64, 65, 127, 128, 129, 500] {
+        for n in [0, 1, 63, 64, 65, 127, 128, 129, 500, 1001] {
             let mut bits = Bits::all(n);
             let mut flags = vec![true; n];
+            let sparse = n % 2 == 1;
+            if sparse {
+                (0..n).for_each(|i| bits.clear(i));
+                flags.fill(false);
+            }
             for _ in 0..4 * n + 10 {
                 let next = |flags: &[bool], i: usize| (i..n).find(|&j| flags[j]);
                 for i in 0..=n + 1 {
@@ -515,8 +521,9 @@ mod tests {
                 if n == 0 {
                     break;
                 }
+                // Dense or sparse (whole words empty, skipped), by the size.
                 let i = rng.below(n as u64) as usize;
-                match rng.below(3) {
+                match rng.below(if sparse { 200 } else { 3 }) {
                     0 => (bits.set(i), flags[i] = true),
                     _ => (bits.clear(i), flags[i] = false),
                 };
