@@ -335,8 +335,9 @@ impl Region for Tube<'_> {
     }
 }
 
-/// Is every one of `others` on the same surface as `from`? Searched near first, then along the
-/// handle's other loop (in its own cubes, then within two of it); then from both ends with
+/// Is every one of `others` on the same surface as `from`? Searched near first, then over the
+/// whole surface on a small budget, then along the handle's other loop (in its own cubes, then
+/// within two of it); then over the whole surface from both ends ([`joined_everywhere`]) with
 /// budgets growing fourfold, so a piece on a small separate surface is told apart at the cost
 /// of that small surface, not of the large one.
 /// (A path found within a region is a path on the surface, so only "no" needs the whole search.)

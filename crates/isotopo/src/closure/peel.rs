@@ -496,9 +496,6 @@ mod tests {
         assert!(flipped > 500, "{flipped} flipped");
     }
 
-    /// A list's places, by array (a compact list) or by hash map (a list spread far), are
-    /// those of the list: for every sample in and round its box, the last place it has in it,
-    /// or none. Random lists with repeats.
     /// The bits hold what a list of flags holds, and the next member from any place is the
     /// next flag set (sets of every length round a word's, random sets and clears, dense and
     /// sparse).
@@ -531,6 +528,9 @@ mod tests {
         }
     }
 
+    /// A list's places, by array (a compact list) or by hash map (a list spread far), are
+    /// those of the list: for every sample in and round its box, the last place it has in it,
+    /// or none. Random lists with repeats.
     #[test]
     fn places_are_where_the_list_has_them() {
         let mut rng = crate::test_rng::Rng(0x3c6e_f372_fe94_f82b);
