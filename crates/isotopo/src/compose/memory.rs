@@ -2,7 +2,7 @@
 //! the next.
 //!
 //! Each kind of change reads the volume only near the cell it mends (see [`READS`]: a rewrite
-//! within 6 samples, a speck's new place within 13, a swap's path within 42); only an opening
+//! within 6 samples, a speck's new place within 13 (a single sample's, last, 18), a swap's path within 42); only an opening
 //! reads far (whether its two corners are one component). So a kind that found
 //! nothing for a cell finds nothing again while no sample within its reach changes, and a
 //! kind whose flips were refused (they would move a held handle) is refused again. A step on a
@@ -27,11 +27,13 @@ use crate::topology::cases::Connectivity;
 /// one flip (1), two or three within one sample of the cube (2), a dent of up to 8 samples (8),
 /// a rewrite's box round the samples within two of the cube (5), a speck put down up to
 /// `TELEPORT_REACH` (7) from its corner with the box its region search spans round the place
-/// (5 more: 12); a swap's path within `FAR_SWAP_REACH` (40) and a cut sample's neighbours (41).
-pub(super) const READS: [(Change, i64); 7] = [
+/// (5 more: 12), or up to `FAR_TELEPORT_REACH` (12, so 17); a swap's path within
+/// `FAR_SWAP_REACH` (40) and a cut sample's neighbours (41).
+pub(super) const READS: [(Change, i64); 8] = [
     (Change::Single, 2),
     (Change::Pair, 3),
     (Change::Move, 13),
+    (Change::FarMove, super::FAR_TELEPORT_REACH + 6),
     (Change::Triple, 3),
     (Change::Dent, 9),
     (Change::Swap, super::FAR_SWAP_REACH + 2),
@@ -54,7 +56,7 @@ struct Tried {
     /// The clock when it was tried.
     at: u64,
     /// The kinds (bits by their place in [`Change::ALL`]) that found nothing.
-    none: u8,
+    none: u16,
     /// The kind whose flips were refused, if one was (the kinds after it were not tried).
     refused: Option<Change>,
 }
@@ -157,7 +159,7 @@ impl Memory {
 
     /// Notes that trying `cell` now found nothing for the kinds of `none` and, if given, flips
     /// of kind `refused` that were refused.
-    pub(super) fn left(&mut self, cell: Cell, none: u8, refused: Option<Change>) {
+    pub(super) fn left(&mut self, cell: Cell, none: u16, refused: Option<Change>) {
         let tried = Tried {
             at: self.clock,
             none,
@@ -206,7 +208,7 @@ impl Recall {
     /// flips that are refused; `None` when it must be tried.
     pub(super) fn known(&self, change: Change) -> Option<bool> {
         let (_, reach) = READS.iter().find(|(c, _)| *c == change)?;
-        let nothing = self.tried.none & 1 << change as u8 != 0;
+        let nothing = self.tried.none & 1 << change as u16 != 0;
         let known = nothing || self.tried.refused == Some(change);
         (known && *reach < self.clear).then_some(nothing)
     }
@@ -248,7 +250,7 @@ mod tests {
         let cell = (CellKind::FaceZ, [20, 20, 20]);
         m.left(
             cell,
-            1 << Change::Rewrite as u8 | 1 << Change::Swap as u8,
+            1 << Change::Rewrite as u16 | 1 << Change::Swap as u16,
             None,
         );
         assert_eq!(known(&m, cell, Change::Rewrite), Some(true));
@@ -264,7 +266,7 @@ mod tests {
         assert_eq!(known(&m, cell, Change::Rewrite), Some(true));
         assert_eq!(known(&m, cell, Change::Swap), None);
         // Within it, on either side, diagonally.
-        m.left(cell, 1 << Change::Rewrite as u8, None);
+        m.left(cell, 1 << Change::Rewrite as u16, None);
         m.changed([20 - r, 21 + r, 20]);
         assert_eq!(known(&m, cell, Change::Rewrite), None);
         // A refusal is known like an answer.
@@ -273,7 +275,7 @@ mod tests {
         // A swap reads farthest: a change just beyond it, in another cube of changes, is not
         // seen; one at its reach is.
         let s = reach(Change::Swap);
-        m.left(cell, 1 << Change::Swap as u8, None);
+        m.left(cell, 1 << Change::Swap as u16, None);
         m.changed([20, 20 - s - 1, 21 + s + 1]);
         assert_eq!(known(&m, cell, Change::Swap), Some(true));
         m.changed([20, 21 + s, 20]);
@@ -285,18 +287,18 @@ mod tests {
         let mut m = Memory::default();
         m.begin(Connectivity::Six, Some(true), &[[5, 5, 5]]);
         let cell = (CellKind::Cube, [5, 5, 6]);
-        m.left(cell, 1 << Change::Single as u8, None);
+        m.left(cell, 1 << Change::Single as u16, None);
         m.end(&[[5, 5, 5]], |_| true);
         m.begin(Connectivity::Six, Some(true), &[[5, 5, 5]]);
         assert_eq!(known(&m, cell, Change::Single), Some(true));
         m.begin(Connectivity::Six, Some(true), &[]);
         assert_eq!(known(&m, cell, Change::Single), None);
         // Other rules: nothing is known.
-        m.left(cell, 1 << Change::Single as u8, None);
+        m.left(cell, 1 << Change::Single as u16, None);
         m.begin(Connectivity::TwentySix, Some(true), &[]);
         assert_eq!(known(&m, cell, Change::Single), None);
         // Cells no longer critical are let go at a step's end.
-        m.left(cell, 1 << Change::Single as u8, None);
+        m.left(cell, 1 << Change::Single as u16, None);
         m.end(&[], |_| false);
         assert!(m.recall(cell).is_none());
     }

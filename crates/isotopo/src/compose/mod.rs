@@ -36,10 +36,13 @@
 //! - two flips within two samples of the cell or three within one, not simple one at a
 //!   time but keeping the topology together, checked in a box round them (`Mender::best_rewrite`,
 //!   `grid::simple::SetTest`): a crack between two sheets that crosses a face diagonally goes round it;
+//! - a single-sample speck put down farther ([`FAR_TELEPORT_REACH`]): in a cloud of grains
+//!   on dense noise the nearest room may lie beyond the usual reach;
 //! - last, and only when asked ([`ComposeOptions::open_handles`], which `simplify` sets when it
 //!   closes handles afterwards): a face whose two corners are one component but no swap mends
 //!   (joined only far away, or through material no single sample cuts) gets the handle the
-//!   other connectivity sees through it (`Mender::open_handle`). Simplify's next pass closes
+//!   other connectivity sees through it (`Mender::open_handle`), followed, where that alone
+//!   makes another cell critical, by one simple flip beside it. Simplify's next pass closes
 //!   that handle elsewhere, with the sample kept ([`Composition::opened`]). Until then no
 //!   change may move the handle off that sample (mending the faces round it could: see
 //!   `compose_holding`), so that one no pass closes is taken back by flipping the sample back.
@@ -275,12 +278,14 @@ enum Change {
     Swap,
     /// Flips that keep the topology together (`Mender::best_rewrite`).
     Rewrite,
+    /// A single-sample speck put down farther (`Mender::relocate_far`).
+    FarMove,
     /// A handle opened through the face (`Mender::open_handle`).
     Opening,
 }
 
 impl Change {
-    const ALL: [Change; 8] = [
+    const ALL: [Change; 9] = [
         Change::Single,
         Change::Pair,
         Change::Move,
@@ -288,6 +293,7 @@ impl Change {
         Change::Dent,
         Change::Swap,
         Change::Rewrite,
+        Change::FarMove,
         Change::Opening,
     ];
 }
@@ -365,7 +371,7 @@ impl Mender {
             match change {
                 Change::Single => {}
                 Change::Pair | Change::Triple => self.pairs += 1,
-                Change::Move | Change::Dent => self.moves += 1,
+                Change::Move | Change::Dent | Change::FarMove => self.moves += 1,
                 Change::Swap => self.swaps += 1,
                 Change::Rewrite => self.rewrites += 1,
                 Change::Opening => {
@@ -390,7 +396,7 @@ impl Mender {
         cell: Cell,
     ) -> Option<(Change, Vec<[i64; 3]>)> {
         let recall = self.memory.recall(cell);
-        let mut none = 0u8;
+        let mut none = 0u16;
         for change in Change::ALL {
             let known = recall.as_ref().and_then(|r| r.known(change));
             self.memory.recalled += known.is_some() as u64;
@@ -403,7 +409,7 @@ impl Mender {
                 None => self.try_change(vol, cell, change),
             };
             let Some(flips) = flips else {
-                none |= 1 << change as u8;
+                none |= 1 << change as u16;
                 continue;
             };
             // The cell is left while the handle stands (the kinds after would cost the most
@@ -433,7 +439,8 @@ impl Mender {
             Change::Dent => self.fill_dent(vol, cell),
             Change::Swap => self.swap_handle(vol, cell),
             Change::Rewrite => self.best_rewrite(vol, cell),
-            Change::Opening => self.open_handle(vol, cell).map(|b| vec![b]),
+            Change::FarMove => self.relocate_far(vol, cell),
+            Change::Opening => self.open_handle(vol, cell),
         }
     }
 
@@ -540,6 +547,11 @@ pub const MAX_SPECK: usize = 4;
 /// others may find room only a few samples away).
 pub const TELEPORT_REACH: i64 = 7;
 
+/// Farthest a single-sample speck is put down when no place within [`TELEPORT_REACH`] and no
+/// room cleared where it is lowers the critical cells (a cloud of grains on dense noise, each
+/// touching the next diagonally).
+pub const FAR_TELEPORT_REACH: i64 = 12;
+
 /// How many places a speck is tried at with a room cleared round it (the best places first).
 const ROOMS_TRIED: usize = 8;
 
@@ -583,7 +595,7 @@ impl Mender {
                     return Some(flips);
                 }
             }
-            if let Some(moved) = self.teleport(vol, &speck, side) {
+            if let Some(moved) = self.teleport(vol, &speck, side, TELEPORT_REACH) {
                 return Some(moved);
             }
             if let Some(room) = self.clear_room(vol, &speck, side) {
@@ -593,27 +605,58 @@ impl Mender {
         None
     }
 
+    /// A single-sample speck at a corner of `cell` put down up to [`FAR_TELEPORT_REACH`] away
+    /// (see `Mender::teleport`), when every other kind of change that keeps the topology
+    /// found nothing: in a cloud of grains on dense noise the nearest room may lie farther
+    /// than [`TELEPORT_REACH`].
+    fn relocate_far(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
+        if self.only.is_some() {
+            return None;
+        }
+        let side = self.six_side();
+        for p in corners(vol, cell) {
+            if state(vol, p) != side {
+                continue;
+            }
+            let Some(speck) = small_piece(vol, p, side, 1) else {
+                continue;
+            };
+            if let Some(moved) = self.teleport(vol, &speck, side, FAR_TELEPORT_REACH) {
+                return Some(moved);
+            }
+        }
+        None
+    }
+
     /// A speck hemmed in (every step aside touches another piece): where it can be put instead,
-    /// moved by up to [`MAX_STEPS`] samples along each axis, with no sample of its side beside
-    /// the new place and the two places in one piece of the other side. A speck of at most
-    /// [`MAX_SPECK`] 6-adjacent samples is a ball, so its surface is a sphere in the same
-    /// region as before: nothing but its place changes. Returns the new place that lowers the
-    /// critical cells around the two the most.
+    /// moved by up to [`MAX_STEPS`] samples along each axis (a single sample: up to `reach`),
+    /// with no sample of its side beside the new place and the two places in one piece of the
+    /// other side. A speck of at most [`MAX_SPECK`] 6-adjacent samples is a ball, so its
+    /// surface is a sphere in the same region as before: nothing but its place changes.
+    /// Returns the new place that lowers the critical cells around the two the most.
     fn teleport(
         &self,
         vol: &mut MaskVolume,
         speck: &[[i64; 3]],
         side: bool,
+        reach: i64,
     ) -> Option<Vec<[i64; 3]>> {
         let r = if speck.len() == 1 {
-            TELEPORT_REACH
-        } else {
+            reach
+        } else if reach == TELEPORT_REACH {
             MAX_STEPS as i64
+        } else {
+            return None;
         };
         let mut places: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
+        // Farther than the usual reach: only the places beyond it are new.
+        let tried = |d: i64| reach > TELEPORT_REACH && d.abs() <= TELEPORT_REACH;
         for dz in -r..=r {
             for dy in -r..=r {
                 for dx in -r..=r {
+                    if tried(dx) && tried(dy) && tried(dz) {
+                        continue;
+                    }
                     let to: Vec<[i64; 3]> = speck
                         .iter()
                         .map(|q| [q[0] + dx, q[1] + dy, q[2] + dz])
@@ -1027,31 +1070,75 @@ impl Mender {
     /// handle through it aside (the path joining them runs far away, or through material no
     /// single sample cuts): the other corner `b` whose flip to that side joins exactly `a`'s
     /// and `d`'s pieces round it, which adds one handle (the one the other connectivity sees
-    /// through the face) and changes no component or cavity.
+    /// through the face) and changes no component or cavity. Where `b` alone makes another
+    /// cell critical, a simple flip next to `b` that mends it may follow (`b` kept the passage
+    /// of the handle: `Mender::then_simple`); the flips are `b` first.
     ///
     /// ```text
     ///   a .        a b        a ~~~ d joined far away: one handle more, through b; simplify
     ///   . d   ->   . d        closes it elsewhere and keeps b
     /// ```
-    fn open_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<[i64; 3]> {
+    fn open_handle(&self, vol: &mut MaskVolume, cell: Cell) -> Option<Vec<[i64; 3]>> {
         let side = self.six_side();
         if !self.open_handles || self.only.is_some_and(|s| s != side) {
             return None;
         }
         let (joined, others) = face_corners(vol, cell, side)?;
-        let mut best: Option<([i64; 3], i64)> = None;
+        let mut best: Option<(Vec<[i64; 3]>, i64)> = None;
         for &b in &others {
             if !self.joins_the_two(vol, b, joined) {
                 continue;
             }
-            let d = change(vol, &[b]);
-            if d < 0 && best.is_none_or(|(_, x)| d < x) {
-                best = Some((b, d));
+            let alone = (vec![b], change(vol, &[b]));
+            let found = if alone.1 < 0 {
+                Some(alone)
+            } else {
+                self.then_simple(vol, b)
+            };
+            if let Some((flips, d)) = found {
+                if best.as_ref().is_none_or(|(_, x)| d < *x) {
+                    best = Some((flips, d));
+                }
             }
         }
-        let (b, _) = best?;
+        let (flips, _) = best?;
         // Last, as it may visit a whole component: joined elsewhere, else b would join two.
-        (one_component(vol, joined[0], joined[1], side, Reach::Near) == Some(true)).then_some(b)
+        (one_component(vol, joined[0], joined[1], side, Reach::Near) == Some(true)).then_some(flips)
+    }
+
+    /// After `b` (of the other side) opens a handle, the sample next to it whose flip is then
+    /// simple, keeps `b` the handle's passage (two pieces of the 6-connected side round it and
+    /// one of the other, so that taking `b` back still removes exactly that handle) and lowers
+    /// the critical cells round the two flips the most, with that change, if it lowers them.
+    ///
+    /// ```text
+    ///   z = 1    z = 2        b opened: the face (b, e) of the plane x = const shows a
+    ///   a b      . e          diagonal; e (simple once b is flipped) lets go, and no face
+    ///   . d      . .          round the two is critical (a thread passing itself diagonally
+    ///                         at a turn of a 48^3 noise, left by every single change)
+    /// ```
+    fn then_simple(&self, vol: &mut MaskVolume, b: [i64; 3]) -> Option<(Vec<[i64; 3]>, i64)> {
+        let offsets = &crate::grid::simple::neighbourhood().offsets;
+        let mut best: Option<([i64; 3], i64)> = None;
+        for &o in offsets {
+            let e = shift(b, o);
+            if !vol.contains(e) || self.held.contains_key(&e) {
+                continue;
+            }
+            let d = change(vol, &[b, e]);
+            if d >= 0 || best.is_some_and(|(_, x)| d >= x) || !self.simple_after(vol, &[b], e) {
+                continue;
+            }
+            toggle(vol, b);
+            toggle(vol, e);
+            let passage = self.numbers(vol, b) == (2, 1);
+            toggle(vol, e);
+            toggle(vol, b);
+            if passage {
+                best = Some((e, d));
+            }
+        }
+        best.map(|(e, d)| (vec![b, e], d))
     }
 
     /// The topological numbers of `p` as (6-connected side, other side).
@@ -1960,8 +2047,133 @@ mod tests {
         assert!(state(&cut, b));
     }
 
-    /// `each_marked_subset` against every `k`-subset in lexicographic order, filtered: the same
-    /// sets in the same order (a rewrite's ties are broken by that order), for random marks.
+    /// A grain s touching four others diagonally, in the middle of a cloud of single grains two
+    /// samples apart, 17 across: every place within [`TELEPORT_REACH`] lies in the cloud, where
+    /// the grain would touch as many (or more) others as here, and no grain round it can let go
+    /// (each is a component). Put down beyond the usual reach, clear of the cloud, it touches
+    /// nothing: the four faces are mended and every component kept.
+    ///
+    /// ```text
+    ///   # . # . # . #      plane z = c: grains at even x and y (and even z, planes
+    ///   . . . . . . .      of the cloud), s at odd x, odd y: four critical faces
+    ///   # . # s # . #
+    ///   . . . . . . .
+    ///   # . # . # . #
+    /// ```
+    #[test]
+    fn a_grain_in_a_cloud_is_put_down_beyond_the_usual_reach() {
+        let (n, mid) = (44i64, 20i64);
+        let mut vol = MaskVolume::new([n as usize; 3], Frame::identity());
+        for z in (mid - 8..=mid + 8).step_by(2) {
+            for y in (mid - 8..=mid + 8).step_by(2) {
+                for x in (mid - 8..=mid + 8).step_by(2) {
+                    set(&mut vol, [x, y, z], true);
+                }
+            }
+        }
+        let grain = [mid + 1, mid + 1, mid];
+        set(&mut vol, grain, true);
+        assert_eq!(count_volume(&vol).total(), 4);
+        let before = betti(&vol);
+        let m = mender();
+        assert!(m
+            .teleport(&mut vol, &[grain], true, TELEPORT_REACH)
+            .is_none());
+        assert!(m.clear_room(&mut vol, &[grain], true).is_none());
+        let keep = ComposeOptions {
+            only: None,
+            open_handles: false,
+        };
+        let c = compose(
+            &mut vol,
+            Connectivity::Six,
+            keep,
+            &crate::progress::NoProgress,
+        )
+        .unwrap();
+        assert_eq!(c.left.total(), 0);
+        assert_eq!(count_volume(&vol).total(), 0);
+        assert_eq!(betti(&vol), before);
+        // Grains moved, none lost or added, some put down clear of the cloud.
+        let taken = c.flips.iter().filter(|(_, inside)| *inside);
+        assert_eq!(2 * taken.clone().count(), c.flips.len(), "{:?}", c.flips);
+        let far = |q: &[i64; 3]| q.iter().any(|&x| (x - mid).abs() > 9);
+        assert!(taken.clone().any(|(q, _)| far(q)), "{:?}", c.flips);
+    }
+
+    /// The face a 48^3 smoothed noise (numpy seed 100, sigma 0.5, iso 0, tau 20) kept after
+    /// simplify: a thread passes itself diagonally at a turn, a and d joined only round the
+    /// turn. No change that keeps the topology mends it, and the handle opened through it
+    /// alone makes another face critical; opened, then one sample beside it let go, no cell is
+    /// critical, with one handle more (for simplify's next pass to close). The samples of the
+    /// output within 6 of the face, 14 x 14 x 8, four to a hex digit (x fastest, high bit
+    /// first).
+    #[test]
+    fn a_face_whose_opening_needs_one_simple_flip_more_is_mended() {
+        const MASK: [&str; 7] = [
+            "1fe6ffb08cd886385ea47a19a203ce60201287c0c00fd370007e4081",
+            "080df873f1c04301de3930e60080201c8010007101f38700100cdc03",
+            "7009c03040e383e3008c02601990001f10fba0060b01ec0600123860",
+            "0020382e303ac2ff1b91c007601fff8060003051e10f063e08200380",
+            "8e23f8ffe1d80730fc9bfff0040510147070c0eb878e003a11e85e0f",
+            "c0398277ef5fe5ff03ff0f801e0208003100ec0f3c38e3e18f03b8e0",
+            "63c1ff03c583f0d881e0818007040c0071cbe72f9cb033e8062c10f0",
+        ];
+        let n = [14usize, 14, 8];
+        let bits: Vec<bool> = MASK
+            .concat()
+            .chars()
+            .flat_map(|h| {
+                let v = h.to_digit(16).unwrap();
+                (0..4).rev().map(move |k| (v >> k) & 1 == 1)
+            })
+            .collect();
+        let crop = || {
+            let mut vol = MaskVolume::new(n, Frame::identity());
+            for (k, &inside) in bits.iter().enumerate() {
+                let p = [k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1])];
+                set(&mut vol, p.map(|x| x as i64), inside);
+            }
+            vol
+        };
+        let face = (CellKind::FaceZ, [6, 6, 1]);
+        let mut vol = crop();
+        assert_eq!(count_volume(&vol).total(), 1);
+        assert!(is_critical(&vol, face));
+        let (b0, b1, b2) = betti(&vol);
+        let keep = ComposeOptions {
+            only: None,
+            open_handles: false,
+        };
+        let kept = compose(
+            &mut vol,
+            Connectivity::Six,
+            keep,
+            &crate::progress::NoProgress,
+        );
+        assert_eq!(kept.unwrap().left.total(), 1, "left unless a handle opens");
+        let mut vol = crop();
+        let open = ComposeOptions {
+            open_handles: true,
+            ..keep
+        };
+        let c = compose(
+            &mut vol,
+            Connectivity::Six,
+            open,
+            &crate::progress::NoProgress,
+        )
+        .unwrap();
+        assert_eq!(c.left.total(), 0);
+        assert_eq!(c.opened, vec![[6, 6, 1]]);
+        assert_eq!(c.flips.len(), 2, "{:?}", c.flips);
+        assert_eq!(betti(&vol), (b0, b1 + 1, b2));
+        assert_eq!(count_volume(&vol).total(), 0);
+        // Taking the handle back leaves the rest as it was: the topology of the input.
+        assert!(take_back(&mut vol, Connectivity::Six, [6, 6, 1]));
+        assert_eq!(betti(&vol), (b0, b1, b2));
+    }
+
     /// A step that remembers what earlier steps found (see [`Memory`]) flips exactly what a
     /// step that tries everything again flips, step after step, with samples changed between
     /// steps near and far, handles opened and held samples that come and go.
@@ -2034,6 +2246,8 @@ mod tests {
         );
     }
 
+    /// `each_marked_subset` against every `k`-subset in lexicographic order, filtered: the same
+    /// sets in the same order (a rewrite's ties are broken by that order), for random marks.
     #[test]
     fn marked_subsets_are_every_subset_with_a_mark_in_order() {
         let mut rng = crate::test_rng::Rng(0x05eb_5e75);
