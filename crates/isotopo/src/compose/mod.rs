@@ -629,9 +629,9 @@ impl Mender {
     }
 
     /// A speck hemmed in (every step aside touches another piece): where it can be put instead,
-    /// moved by up to [`MAX_STEPS`] samples along each axis (a single sample: up to `reach`),
-    /// with no sample of its side beside the new place and the two places in one piece of the
-    /// other side. A speck of at most [`MAX_SPECK`] 6-adjacent samples is a ball, so its
+    /// moved by up to [`MAX_STEPS`] samples along each axis (a single sample: up to `reach`; a
+    /// reach beyond [`TELEPORT_REACH`] tries only the places beyond it), with no sample of its
+    /// side beside the new place and the two places in one piece of the other side. A speck of at most [`MAX_SPECK`] 6-adjacent samples is a ball, so its
     /// surface is a sphere in the same region as before: nothing but its place changes.
     /// Returns the new place that lowers the critical cells around the two the most.
     fn teleport(
@@ -643,18 +643,16 @@ impl Mender {
     ) -> Option<Vec<[i64; 3]>> {
         let r = if speck.len() == 1 {
             reach
-        } else if reach == TELEPORT_REACH {
-            MAX_STEPS as i64
         } else {
-            return None;
+            MAX_STEPS as i64
         };
         let mut places: Vec<(i64, Vec<[i64; 3]>)> = Vec::new();
-        // Farther than the usual reach: only the places beyond it are new.
-        let tried = |d: i64| reach > TELEPORT_REACH && d.abs() <= TELEPORT_REACH;
+        // Farther than the usual reach, only the places beyond it are new.
+        let tried_before = |d: i64| reach > TELEPORT_REACH && d.abs() <= TELEPORT_REACH;
         for dz in -r..=r {
             for dy in -r..=r {
                 for dx in -r..=r {
-                    if tried(dx) && tried(dy) && tried(dz) {
+                    if tried_before(dx) && tried_before(dy) && tried_before(dz) {
                         continue;
                     }
                     let to: Vec<[i64; 3]> = speck
@@ -1751,6 +1749,15 @@ mod tests {
         }
     }
 
+    /// The step at connectivity 6, either side allowed, opening handles or not.
+    fn compose_six(vol: &mut MaskVolume, open_handles: bool) -> Composition {
+        let opts = ComposeOptions {
+            only: None,
+            open_handles,
+        };
+        compose(vol, Connectivity::Six, opts, &crate::progress::NoProgress).unwrap()
+    }
+
     fn betti(vol: &MaskVolume) -> (u64, u64, u64) {
         let g = vol.genus(Connectivity::Six).unwrap();
         (g.b0, g.b1, g.b2)
@@ -2080,17 +2087,7 @@ mod tests {
             .teleport(&mut vol, &[grain], true, TELEPORT_REACH)
             .is_none());
         assert!(m.clear_room(&mut vol, &[grain], true).is_none());
-        let keep = ComposeOptions {
-            only: None,
-            open_handles: false,
-        };
-        let c = compose(
-            &mut vol,
-            Connectivity::Six,
-            keep,
-            &crate::progress::NoProgress,
-        )
-        .unwrap();
+        let c = compose_six(&mut vol, false);
         assert_eq!(c.left.total(), 0);
         assert_eq!(count_volume(&vol).total(), 0);
         assert_eq!(betti(&vol), before);
@@ -2141,29 +2138,10 @@ mod tests {
         assert_eq!(count_volume(&vol).total(), 1);
         assert!(is_critical(&vol, face));
         let (b0, b1, b2) = betti(&vol);
-        let keep = ComposeOptions {
-            only: None,
-            open_handles: false,
-        };
-        let kept = compose(
-            &mut vol,
-            Connectivity::Six,
-            keep,
-            &crate::progress::NoProgress,
-        );
-        assert_eq!(kept.unwrap().left.total(), 1, "left unless a handle opens");
+        let kept = compose_six(&mut vol, false);
+        assert_eq!(kept.left.total(), 1, "left unless a handle opens");
         let mut vol = crop();
-        let open = ComposeOptions {
-            open_handles: true,
-            ..keep
-        };
-        let c = compose(
-            &mut vol,
-            Connectivity::Six,
-            open,
-            &crate::progress::NoProgress,
-        )
-        .unwrap();
+        let c = compose_six(&mut vol, true);
         assert_eq!(c.left.total(), 0);
         assert_eq!(c.opened, vec![[6, 6, 1]]);
         assert_eq!(c.flips.len(), 2, "{:?}", c.flips);
