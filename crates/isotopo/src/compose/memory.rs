@@ -2,14 +2,14 @@
 //! the next.
 //!
 //! Each kind of change reads the volume only near the cell it mends (see [`READS`]: a rewrite
-//! within 6 samples, a speck's new place within 13 (a single sample's, last, 18), a swap's path within 42); only an opening
-//! reads far (whether its two corners are one component). So a kind that found
-//! nothing for a cell finds nothing again while no sample within its reach changes, and a
-//! kind whose flips were refused (they would move a held handle) is refused again. A step on a
-//! volume a pass changed in a few places, or a look after a few flips, then tries again only
-//! what those changes may alter; the cells left far from them, most of a noisy scan's, cost a
-//! lookup instead of thousands of rewrites each. The answers are those of trying every kind
-//! again: the same flips, in the same order.
+//! within 6 samples, a speck's new place within 13 (a single sample's, last, 18), a swap's
+//! path within 42); only an opening reads far (whether its two corners are one component).
+//! So a kind that found nothing for a cell finds nothing again while no sample within its
+//! reach changes, and a kind whose flips were refused (they would move a held handle) is
+//! refused again. A step on a volume a pass changed in a few places, or a look after a few
+//! flips, then tries again only what those changes may alter; the cells left far from them,
+//! most of a noisy scan's, cost a lookup instead of thousands of rewrites each. The answers
+//! are those of trying every kind again: the same flips, in the same order.
 //!
 //! ```text
 //!   . . . . . . . . .      x: a cell left, last tried at clock 5

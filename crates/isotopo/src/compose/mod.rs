@@ -469,10 +469,9 @@ impl Mender {
         if near.is_empty() {
             return true;
         }
-        flips.iter().for_each(|&p| toggle(vol, p));
-        let kept = near.iter().all(|&b| self.numbers(vol, b) == (2, 1));
-        flips.iter().for_each(|&p| toggle(vol, p));
-        kept
+        after(vol, flips, |vol| {
+            near.iter().all(|&b| self.numbers(vol, b) == (2, 1))
+        })
     }
 
     fn flip(&mut self, vol: &mut MaskVolume, p: [i64; 3]) {
@@ -631,9 +630,10 @@ impl Mender {
     /// A speck hemmed in (every step aside touches another piece): where it can be put instead,
     /// moved by up to [`MAX_STEPS`] samples along each axis (a single sample: up to `reach`; a
     /// reach beyond [`TELEPORT_REACH`] tries only the places beyond it), with no sample of its
-    /// side beside the new place and the two places in one piece of the other side. A speck of at most [`MAX_SPECK`] 6-adjacent samples is a ball, so its
-    /// surface is a sphere in the same region as before: nothing but its place changes.
-    /// Returns the new place that lowers the critical cells around the two the most.
+    /// side beside the new place and the two places in one piece of the other side. A speck
+    /// of at most [`MAX_SPECK`] 6-adjacent samples is a ball, so its surface is a sphere in
+    /// the same region as before: nothing but its place changes. Returns the new place that
+    /// lowers the critical cells around the two the most.
     fn teleport(
         &self,
         vol: &mut MaskVolume,
@@ -994,10 +994,7 @@ impl Mender {
 
     /// Whether `r` may flip once `before` are flipped, in turn.
     fn simple_after(&self, vol: &mut MaskVolume, before: &[[i64; 3]], r: [i64; 3]) -> bool {
-        before.iter().for_each(|&p| toggle(vol, p));
-        let simple = self.simple(vol, r);
-        before.iter().rev().for_each(|&p| toggle(vol, p));
-        simple
+        after(vol, before, |vol| self.simple(vol, r))
     }
 }
 
@@ -1087,11 +1084,10 @@ impl Mender {
             if !self.joins_the_two(vol, b, joined) {
                 continue;
             }
-            let alone = (vec![b], change(vol, &[b]));
-            let found = if alone.1 < 0 {
-                Some(alone)
-            } else {
-                self.then_simple(vol, b)
+            let alone = change(vol, &[b]);
+            let found = match alone < 0 {
+                true => Some((vec![b], alone)),
+                false => self.then_simple(vol, b),
             };
             if let Some((flips, d)) = found {
                 if best.as_ref().is_none_or(|(_, x)| d < *x) {
@@ -1141,10 +1137,7 @@ impl Mender {
         flips: &[[i64; 3]],
         p: [i64; 3],
     ) -> (usize, usize) {
-        flips.iter().for_each(|&q| toggle(vol, q));
-        let numbers = self.numbers(vol, p);
-        flips.iter().rev().for_each(|&q| toggle(vol, q));
-        numbers
+        after(vol, flips, |vol| self.numbers(vol, p))
     }
 
     /// The topological numbers of `p` as (6-connected side, other side).
@@ -1631,6 +1624,15 @@ const COMPONENT_BUDGET: usize = 1 << 20;
 /// How far from the face, in planes, [`one_component`] searches within [`Reach::Near`].
 const COMPONENT_PLANES: i64 = 64;
 
+/// What `read` finds once the samples `flips` are flipped in turn (the volume is left as it
+/// was).
+fn after<T>(vol: &mut MaskVolume, flips: &[[i64; 3]], read: impl FnOnce(&MaskVolume) -> T) -> T {
+    flips.iter().for_each(|&p| toggle(vol, p));
+    let found = read(vol);
+    flips.iter().rev().for_each(|&p| toggle(vol, p));
+    found
+}
+
 fn toggle(vol: &mut MaskVolume, p: [i64; 3]) {
     set(vol, p, !vol.get(p[0], p[1], p[2]));
 }
@@ -1648,14 +1650,7 @@ fn change(vol: &mut MaskVolume, flips: &[[i64; 3]]) -> i64 {
     cells.dedup();
     let count = |vol: &MaskVolume| cells.iter().filter(|&&c| is_critical(vol, c)).count() as i64;
     let before = count(vol);
-    for &p in flips {
-        set(vol, p, !vol.get(p[0], p[1], p[2]));
-    }
-    let after = count(vol);
-    for &p in flips.iter().rev() {
-        set(vol, p, !vol.get(p[0], p[1], p[2]));
-    }
-    after - before
+    after(vol, flips, count) - before
 }
 
 fn is_critical(vol: &MaskVolume, (kind, c): Cell) -> bool {
