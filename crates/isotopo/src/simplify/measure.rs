@@ -133,7 +133,9 @@ pub(super) fn memo_key(h: &LocatedHandle) -> u64 {
 
 /// Neighbourhoods simplify keeps between handles before starting afresh: its searches stop at
 /// tau, so a smaller graph than analyze's (`MEASURE_GRAPH_LIMIT`) serves, and memory stays near
-/// the window's.
+/// the window's. Checked before each handle, not only at each step of the sweep: one step can
+/// find hundreds of handles, and on the gigavoxel (the bunny CT tiled 2 x 2 x 3) the graph grew
+/// within a step to twice the limit, its arrays to 2^19 vertices (266 MiB peak instead of 240).
 const SIMPLIFY_GRAPH_LIMIT: usize = 1 << 18;
 
 impl Caches {
@@ -156,9 +158,6 @@ impl Caches {
         limits: Limits,
         lasting: &mut Lasting,
     ) -> Vec<HandleLoops> {
-        if self.graph.len() > SIMPLIFY_GRAPH_LIMIT {
-            self.graph = GraphCache::default();
-        }
         let mut g = Graph::with_cache(vol, cases(conn), std::mem::take(&mut self.graph));
         let out = new
             .iter()
@@ -166,6 +165,9 @@ impl Caches {
                 let key = memo_key(h);
                 if let Some(l) = self.memo.get(&key).or_else(|| lasting.get(key)) {
                     return l.clone();
+                }
+                if g.len() > SIMPLIFY_GRAPH_LIMIT {
+                    g = Graph::new(vol, cases(conn));
                 }
                 let h = Handle {
                     id: 0,
