@@ -78,7 +78,8 @@ pub struct Graph<'a> {
     arena: Vec<Around>,
     /// Each numbered vertex, as its key.
     verts: Vec<u64>,
-    /// Numbers of each vertex's neighbours, resolved on first use (`UNRESOLVED` until then).
+    /// Numbers of each vertex's neighbours, resolved on first use (`UNRESOLVED` until then),
+    /// and `BEYOND` past the last.
     nbr_num: Vec<[u32; MAX_DEGREE]>,
     scratch: Scratch,
     /// How many states the loop searches may visit (a field so that a test can run them out).
@@ -150,7 +151,6 @@ impl GraphCache {
                                 self.index.remove(k);
                             }
                             Some(i) => {
-                                self.nbr_num[i as usize] = [UNRESOLVED; MAX_DEGREE];
                                 match around(vol, table, v) {
                                     Some(a) => self.arena[i as usize] = a,
                                     None => {
@@ -159,6 +159,7 @@ impl GraphCache {
                                         self.arena[i as usize].clear();
                                     }
                                 }
+                                self.nbr_num[i as usize] = unresolved(&self.arena[i as usize]);
                             }
                         }
                     }
@@ -169,6 +170,15 @@ impl GraphCache {
 }
 
 const UNRESOLVED: u32 = u32::MAX - 1;
+
+/// Marks the neighbour numbers past a vertex's last, so that a search reads its degree where
+/// it reads its neighbours (the first look at a vertex's [`Around`] is a miss of the cache).
+const BEYOND: u32 = u32::MAX - 3;
+
+/// A vertex's neighbour numbers before any is resolved: `UNRESOLVED`, then `BEYOND`.
+fn unresolved(a: &Around) -> [u32; MAX_DEGREE] {
+    std::array::from_fn(|k| if k < a.n() { UNRESOLVED } else { BEYOND })
+}
 
 /// Marks a vertex that is not on the surface.
 const ABSENT: u32 = u32::MAX;
@@ -455,9 +465,9 @@ impl<'a> Graph<'a> {
         }
         let i = match around(self.vol, self.table, v) {
             Some(a) => {
+                self.nbr_num.push(unresolved(&a));
                 self.arena.push(a);
                 self.verts.push(k);
-                self.nbr_num.push([UNRESOLVED; MAX_DEGREE]);
                 self.arena.len() as u32 - 1
             }
             None => ABSENT,
@@ -516,11 +526,12 @@ impl<'a> Graph<'a> {
     }
 
     /// Bit k set: the edge to neighbour k is usable in the region (cached per region
-    /// generation, so the many searches of one loop ask the region once per vertex).
+    /// generation, so the many searches of one loop ask the region once per vertex). Where the
+    /// region allows all, every bit is set, those past the vertex's degree too.
     #[inline]
     fn usable_mask(&mut self, region: &dyn Region, i: u32) -> u16 {
         if region.allows_all() {
-            return ((1u32 << self.arena[i as usize].n()) - 1) as u16;
+            return u16::MAX;
         }
         let sc = &mut self.scratch;
         if sc.usable_stamp.len() <= i as usize {
@@ -557,7 +568,11 @@ impl Graph<'_> {
             n: 0,
             at: 0,
         };
-        for k in 0..self.arena[i as usize].n() {
+        for k in 0..MAX_DEGREE {
+            let cached = self.nbr_num[i as usize][k];
+            if cached == BEYOND {
+                break;
+            }
             if (mask >> k) & 1 == 1 {
                 if let Some(w) = self.neighbour(i, k) {
                     out.k[out.n as usize] = k as u8;
