@@ -52,7 +52,7 @@ use measure::{memo_key, Caches, Lasting};
 pub use parts::{PartKept, PartKind, PartOperation, PartRemoved, Parts};
 use plan::{plan, wall_near_loop};
 use removal::removal;
-use walls::{close_handle, Refused};
+use walls::{close_handle, NoCut, Refused};
 use write::{changed_sides, final_edits};
 pub(crate) use write::{write_edited, SliceEditor};
 pub use write::{WallValues, Written};
@@ -503,6 +503,8 @@ struct Run<'a> {
     lasting: Lasting,
     rewinds: usize,
     refused: Refused,
+    /// Regions peeled in vain, forgotten where an edit lands (with `lasting`).
+    no_cut: NoCut,
     intra_ribbon: usize,
     seconds: StageSeconds,
     parts: Parts,
@@ -535,6 +537,7 @@ impl<'a> Run<'a> {
             lasting: Lasting::default(),
             rewinds: 0,
             refused: Refused::default(),
+            no_cut: NoCut::default(),
             intra_ribbon: 0,
             seconds: StageSeconds::default(),
             parts: Parts::default(),
@@ -841,7 +844,7 @@ impl<'a> Run<'a> {
         }
         let (opts, affine) = (&self.opts, self.affine);
         let graph = &mut caches.graph;
-        let walling = (graph, &mut self.refused, &self.locked);
+        let walling = (graph, &mut self.refused, &self.locked, &mut self.no_cut);
         let done = close_handle(vol, opts, &l, &candidates, affine, walling);
         let Some(closed) = done else {
             caches.failed.insert(key, ());
@@ -858,6 +861,7 @@ impl<'a> Run<'a> {
             self.original.entry(*q).or_insert(!applied.op.target());
         }
         caches.slices.invalidate(wall.min[2], wall.max[2]);
+        self.no_cut.forget_near(&[wall]);
         let at_pass = (self.passes, s);
         self.removed
             .push(removal(vol, h, &l, &closed, affine, at_pass));
@@ -942,6 +946,7 @@ impl<'a> Run<'a> {
             })
             .collect();
         self.lasting.forget_near(&near);
+        self.no_cut.forget_near(&near);
     }
 
     /// After walls were written at slice `s`: sweep again from the lowest slice they touched.
