@@ -284,14 +284,13 @@ fn close_loop(
                     let region: Vec<[i64; 3]> = unlocked(region, locked);
                     let target = peel_target(&points, partner, lp.length, b);
                     let key = NoCut::key(&region, at, op, &target);
-                    peeled = match no_cut.holds(key) {
-                        true => Vec::new(),
-                        false => {
-                            closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS)
+                    peeled = Vec::new();
+                    if !no_cut.holds(key) {
+                        peeled =
+                            closure::peel_walls(vol, conn, &region, at, op, &target, PEEL_CUTS);
+                        if peeled.is_empty() {
+                            no_cut.insert(key, &region, &target);
                         }
-                    };
-                    if peeled.is_empty() {
-                        no_cut.insert(key, &region, &target);
                     }
                     match peeled.first() {
                         Some(x) => x.clone(),
